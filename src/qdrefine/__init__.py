@@ -1,0 +1,23 @@
+"""qdrefine: refine 2D triangle meshes with longest-edge seven-triangle partitions.
+
+The 7T-QD (Seven Triangle Quasi-Delaunay) partition, with 7T-LE, 7T-D and the classic
+four-triangle schemes for comparison. See :func:`refine` and :func:`partition`.
+"""
+
+from .mesh import Mesh
+from .partition import partition, partition_many
+from .refine import refine, refine_with_parents
+from .schemes import SCHEMES, get_scheme, scheme_names
+
+__all__ = [
+    "Mesh",
+    "SCHEMES",
+    "get_scheme",
+    "partition",
+    "partition_many",
+    "refine",
+    "refine_with_parents",
+    "scheme_names",
+]
+
+__version__ = "0.1.0"
