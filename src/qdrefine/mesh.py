@@ -9,14 +9,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .kernels import number_edges
-from .predicates import orient_signs
+from .predicates import check_coordinates, orient_signs
 
-__all__ = ["Mesh", "MAX_COORDINATE", "index_dtype"]
-
-#: Largest accepted coordinate magnitude: the exact predicates need squares of
-#: differences times small integers to stay far from overflow.
-MAX_COORDINATE = 1e140
-
+__all__ = ["Mesh", "index_dtype"]
 
 def index_dtype(n_points: int) -> type[np.integer]:
     """``int32`` while vertex indices fit, ``int64`` beyond."""
@@ -45,7 +40,8 @@ class Mesh:
     Parameters
     ----------
     points : (N, 2) float64
-        Vertex coordinates, finite, magnitude at most ``1e140``.
+        Vertex coordinates: each 0 or of magnitude in ``[1e-100, 1e100]`` (the range in
+        which every predicate is exact).
     triangles : (M, 3) int
         Vertex indices, counter-clockwise, positive area (checked exactly). Stored as
         ``int32`` while ``N`` fits, ``int64`` beyond.
@@ -107,14 +103,7 @@ def _validated(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | N
     p = np.array(points, dtype=np.float64, copy=True)
     if p.ndim != 2 or p.shape[1] != 2:
         raise ValueError(f"points must have shape (N, 2), got {p.shape}")
-    bad = ~np.isfinite(p).all(axis=1)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"point {i} has a non-finite coordinate {tuple(p[i])}")
-    big = (np.abs(p) > MAX_COORDINATE).any(axis=1)
-    if big.any():
-        i = int(np.flatnonzero(big)[0])
-        raise ValueError(f"point {i} has a coordinate beyond 1e140 in magnitude: {tuple(p[i])}")
+    check_coordinates(p)
     n = p.shape[0]
     t = _integer_array(triangles, "triangles")
     if t.ndim != 2 or t.shape[1] != 3:

@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .kernels import edge_points, emit, number_edges
-from .predicates import orient_signs
+from .predicates import check_coordinates, orient_signs
 from .schemes import Scheme, get_scheme
 
 __all__ = ["partition", "partition_many"]
@@ -60,8 +60,7 @@ def partition_many(vertices: ArrayLike, scheme: str | Scheme = "7t-qd"
     v = np.asarray(vertices, dtype=np.float64)
     if v.ndim != 3 or v.shape[1:] != (3, 2):
         raise ValueError(f"vertices must have shape (K, 3, 2), got {v.shape}")
-    if not np.isfinite(v).all():
-        raise ValueError("vertices must be finite")
+    check_coordinates(v.reshape(-1, 2), "vertex")
     n_tri = v.shape[0]
     k = sch.stencil.per_edge
     n_children = sch.n_children

@@ -17,9 +17,10 @@ Each sign is computed in two stages:
    elimination); the sign of an expansion is the sign of its largest component.
 
 The result is the sign of the exact real value for the float64 inputs, so it never depends on
-the order of the operands. Stage 2 is exact as long as no intermediate over- or underflows:
-coordinates whose magnitude and differences stay within ``[1e-140, 1e140]`` (or are zero).
-:class:`qdrefine.Mesh` refuses coordinates above ``1e140``.
+the order of the operands. Stage 2 is exact as long as no intermediate over- or underflows,
+which holds when every coordinate is zero or has a magnitude in ``[1e-100, 1e100]``
+(:data:`COORDINATE_RANGE`); :class:`qdrefine.Mesh` and :func:`qdrefine.partition` refuse
+other coordinates with a clear error (see :func:`check_coordinates`).
 """
 
 from __future__ import annotations
@@ -27,12 +28,43 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["FILTER", "orient_sign", "form_sign", "orient_signs", "new_scratch"]
+__all__ = [
+    "COORDINATE_RANGE",
+    "FILTER",
+    "check_coordinates",
+    "form_sign",
+    "new_scratch",
+    "orient_sign",
+    "orient_signs",
+]
+
+#: Nonzero coordinate magnitudes for which every predicate is exact.
+COORDINATE_RANGE = (1e-100, 1e100)
 
 EPS = 2.0**-53
 FILTER = 16.0 * EPS
 _SPLITTER = 134217729.0  # 2**27 + 1
 SCRATCH = 160  # capacity of an exact-sum expansion: at most 6 * 4 * 2 * 2 terms + 1
+
+
+def check_coordinates(points: np.ndarray, what: str = "point") -> None:
+    """Raise ``ValueError`` naming the first row of ``points (N, 2)`` that is not finite or
+    has a nonzero coordinate outside :data:`COORDINATE_RANGE`."""
+    p = np.asarray(points)
+    bad = ~np.isfinite(p).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{what} {i} has a non-finite coordinate {tuple(p[i].tolist())}")
+    lo, hi = COORDINATE_RANGE
+    a = np.abs(p)
+    bad = ((a > hi) | ((a < lo) & (a != 0))).any(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"{what} {i} has a coordinate {tuple(p[i].tolist())} outside the supported range: "
+            f"each coordinate must be 0 or between {lo:g} and {hi:g} in magnitude "
+            "(exact predicates; rescale the mesh or round tiny values to 0)"
+        )
 
 
 def new_scratch() -> np.ndarray:
