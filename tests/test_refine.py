@@ -1,0 +1,139 @@
+"""Uniform refinement of whole meshes: conformity, areas, tags, parents, invariance."""
+
+from fractions import Fraction as F
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from meshes import jittered_grid
+from oracle import exact, orient
+from shapes import triangle_set
+
+from qdrefine import Mesh, examples, refine, refine_with_parents, scheme_names
+from qdrefine.predicates import orient_signs
+from qdrefine.kernels import number_edges
+from qdrefine.schemes import get_scheme
+from qdrefine.topology import boundary_edges, conformity, euler_characteristic
+
+SCHEMES = scheme_names()
+mesh_params = st.tuples(st.integers(1, 7), st.integers(0, 10**6), st.sampled_from([0, 0.5, 40.0]))
+
+
+def check_valid(mesh: Mesh, fine: Mesh) -> None:
+    assert conformity(fine).ok
+    assert euler_characteristic(fine) == euler_characteristic(mesh)
+    assert (orient_signs(fine.points, fine.triangles) > 0).all()
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+@settings(max_examples=25, deadline=None)
+@given(params=mesh_params, levels=st.integers(1, 2))
+def test_refined_mesh_is_conforming(scheme, params, levels):
+    mesh = jittered_grid(*params)
+    fine, parents = refine_with_parents(mesh, scheme, levels)
+    check_valid(mesh, fine)
+    t = get_scheme(scheme).n_children ** levels
+    assert fine.n_triangles == mesh.n_triangles * t
+    np.testing.assert_array_equal(parents, np.repeat(np.arange(mesh.n_triangles), t))
+    np.testing.assert_array_equal(fine.cell_tags, mesh.cell_tags[parents])
+    np.testing.assert_array_equal(fine.points[: mesh.n_points], mesh.points)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_children_areas_sum_to_parent_exactly_on_an_exact_grid(scheme):
+    """Coordinates that are multiples of 6 make every new point exact: equality holds."""
+    mesh = jittered_grid(4, seed=5, shuffle=True)
+    mesh = Mesh(np.round(mesh.points * 96) * 6, mesh.triangles)
+    fine, parents = refine_with_parents(mesh, scheme)
+    pts = [exact(p) for p in fine.points]
+    child = [orient(pts[a], pts[b], pts[c]) for a, b, c in fine.triangles]
+    total = [F(0)] * mesh.n_triangles
+    for c, p in zip(child, parents, strict=True):
+        total[p] += c
+    old = [exact(p) for p in mesh.points]
+    assert total == [orient(old[a], old[b], old[c]) for a, b, c in mesh.triangles]
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_children_areas_sum_to_parent_within_the_rounding_bound(scheme):
+    """Children tile the polygon through the stored (rounded) edge points exactly, so with
+    ``d`` the largest L1 displacement of a stored new point from its exact position and ``L``
+    the parent's L1 perimeter, ``|sum(children) - parent| <= 3 L d + 3 d^2`` (twice-areas,
+    exact arithmetic; per edge a-p1-p2-b the change is cross(x1-a, d2) + cross(d1, x2-a) +
+    cross(d1, d2) + cross(d2, b-a))."""
+    mesh = jittered_grid(5, seed=8, shear=3.0)
+    fine, parents = refine_with_parents(mesh, scheme)
+    pts = [exact(p) for p in fine.points]
+    old = pts[: mesh.n_points]
+    k = get_scheme(scheme).stencil.per_edge
+    edges = number_edges(mesh.triangles, mesh.n_points)[0]
+    d = F(0)
+    for g, (a, b) in enumerate(edges.tolist()):
+        for j in range(k):
+            s = F(j + 1, k + 1)
+            x = old[a][0] + s * (old[b][0] - old[a][0])
+            y = old[a][1] + s * (old[b][1] - old[a][1])
+            p = pts[mesh.n_points + g * k + j]
+            d = max(d, abs(p[0] - x) + abs(p[1] - y))
+    assert d > 0  # the bound is exercised, not trivially zero
+    total = [F(0)] * mesh.n_triangles
+    for (a, b, c), p in zip(fine.triangles, parents, strict=True):
+        total[p] += orient(pts[a], pts[b], pts[c])
+    for t, (a, b, c) in enumerate(mesh.triangles):
+        parent = orient(old[a], old[b], old[c])
+        perimeter = sum(abs(old[i][0] - old[j][0]) + abs(old[i][1] - old[j][1])
+                        for i, j in ((a, b), (b, c), (c, a)))
+        assert abs(total[t] - parent) <= 3 * perimeter * d + 3 * d * d
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_triangle_and_vertex_order_do_not_matter(scheme):
+    mesh = jittered_grid(6, seed=3, shear=0.7, shuffle=False)
+    ref = triangle_set(*_arrays(refine(mesh, scheme, 2)))
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        perm = rng.permutation(mesh.n_points)
+        inv = np.argsort(perm)
+        tris = inv[mesh.triangles][rng.permutation(mesh.n_triangles)]
+        tris = np.roll(tris, rng.integers(3), axis=1)  # rotate each triangle's vertex list
+        shuffled = Mesh(mesh.points[perm], tris)
+        assert triangle_set(*_arrays(refine(shuffled, scheme, 2))) == ref
+
+
+def _arrays(mesh):
+    return mesh.points, mesh.triangles
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_tagged_edges_follow_the_boundary(scheme):
+    mesh = examples.plate_with_hole(16, 3)
+    fine = refine(mesh, scheme, 2)
+    pieces = (get_scheme(scheme).stencil.per_edge + 1) ** 2
+    assert len(fine.edges) == len(mesh.edges) * pieces
+    np.testing.assert_array_equal(fine.edge_tags, np.repeat(mesh.edge_tags, pieces))
+    # every boundary edge of the refined mesh is tagged, with its parent's tag
+    b = {frozenset(e) for e in boundary_edges(fine).tolist()}
+    assert b == {frozenset(e) for e in fine.edges.tolist()}
+    # pieces chain from the parent edge's first to its last vertex
+    chains = fine.edges.reshape(len(mesh.edges), pieces, 2)
+    np.testing.assert_array_equal(chains[:, 0, 0], mesh.edges[:, 0])
+    np.testing.assert_array_equal(chains[:, -1, 1], mesh.edges[:, 1])
+    np.testing.assert_array_equal(chains[:, 1:, 0], chains[:, :-1, 1])
+
+
+def test_zero_levels_and_bad_levels():
+    mesh = examples.square(2)
+    assert refine(mesh, levels=0) is mesh
+    for bad in (-1, 1.5, "2"):
+        with pytest.raises(ValueError, match="levels"):
+            refine(mesh, levels=bad)
+    with pytest.raises(ValueError, match="unknown scheme"):
+        refine(mesh, "7T-QD ")
+
+
+def test_right_isosceles_grid_with_exact_ties():
+    mesh = examples.square(8)
+    for scheme in SCHEMES:
+        fine = refine(mesh, scheme, 2)
+        check_valid(mesh, fine)
