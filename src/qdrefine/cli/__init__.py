@@ -1,0 +1,49 @@
+"""The ``qdrefine`` command line: one module per subcommand.
+
+Each subcommand module defines ``HELP`` (one line), ``add_args(parser)`` and
+``run(args) -> int``. Errors that users can cause (bad arguments, bad files, bad meshes)
+are raised as ``ValueError`` or ``OSError`` and printed as one line
+``qdrefine: error: ...`` with exit code 1; no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+__all__ = ["main", "COMMANDS"]
+
+#: Subcommands in the order ``--help`` lists them (module ``qdrefine.cli.<name>``).
+COMMANDS: tuple[str, ...] = ("demo",)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="qdrefine",
+        description="Refine 2D triangle meshes with seven-triangle partitions (7T-QD).",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        module = importlib.import_module(f"{__name__}.{name.replace('-', '_')}")
+        cmd = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        module.add_args(cmd)
+        cmd.set_defaults(handler=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit code."""
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "handler", None) is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(args.handler(args))
+    except (ValueError, OSError) as exc:
+        print(f"qdrefine: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("qdrefine: interrupted", file=sys.stderr)
+        return 130
