@@ -6,6 +6,7 @@ from itertools import permutations
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
+
 from oracle import (
     CASE_TRIANGLES,
     FIXED,
@@ -18,10 +19,9 @@ from oracle import (
     sq,
     strictly_inside_circumcircle,
 )
-from shapes import family_triangles, triangle_set, triangles
-
 from qdrefine import partition, partition_many, scheme_names
 from qdrefine.schemes import get_scheme
+from shapes import family_triangles, triangle_set, triangles
 
 SCHEMES = scheme_names()
 SHAPES = family_triangles(3000, seed=11)
@@ -63,7 +63,8 @@ def test_family_partitions_are_valid_and_conserve_area(scheme):
         assert all(c > 0 for c in children)
         exact_pts = exact_local_points(verts, k)
         parent = abs(orient(*exact_pts[:3]))
-        displacement = max(abs(a[0] - b[0]) + abs(a[1] - b[1]) for a, b in zip(q, exact_pts))
+        displacement = max(abs(a[0] - b[0]) + abs(a[1] - b[1])
+                           for a, b in zip(q, exact_pts, strict=True))
         perimeter = sum(abs(exact_pts[i][0] - exact_pts[j][0]) + abs(exact_pts[i][1] -
                         exact_pts[j][1]) for i, j in ((0, 1), (1, 2), (2, 0)))
         assert abs(sum(children) - parent) <= 3 * perimeter * displacement + 3 * displacement**2

@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from meshes import jittered_grid
 from oracle import exact, orient
-from shapes import triangle_set
-
 from qdrefine import Mesh, examples, refine, refine_with_parents, scheme_names
-from qdrefine.predicates import orient_signs
 from qdrefine.kernels import number_edges
+from qdrefine.predicates import orient_signs
 from qdrefine.schemes import get_scheme
 from qdrefine.topology import boundary_edges, conformity, euler_characteristic
+from shapes import triangle_set
 
 SCHEMES = scheme_names()
 mesh_params = st.tuples(st.integers(1, 7), st.integers(0, 10**6), st.sampled_from([0, 0.5, 40.0]))
@@ -137,3 +137,16 @@ def test_right_isosceles_grid_with_exact_ties():
     for scheme in SCHEMES:
         fine = refine(mesh, scheme, 2)
         check_valid(mesh, fine)
+
+
+def test_output_is_bit_identical_for_any_thread_count():
+    import numba
+
+    mesh = jittered_grid(40, seed=2, shear=0.3)
+    results = []
+    for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+        numba.set_num_threads(threads)
+        fine = refine(mesh, "7t-qd", 2)
+        results.append((fine.points.tobytes(), fine.triangles.tobytes()))
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    assert all(r == results[0] for r in results)

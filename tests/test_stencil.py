@@ -1,11 +1,12 @@
 """The stencil's forms against direct rational geometry."""
 
+from fractions import Fraction as F
+
 import numpy as np
 import pytest
-from oracle import incircle, seven_points, sq
 
+from oracle import incircle, seven_points, sq
 from qdrefine.stencil import SEVEN, incircle_form, sqdist_form
-from fractions import Fraction as F
 
 rng = np.random.default_rng(7)
 SHAPES = [(F(float(x)), F(float(y))) for x, y in rng.uniform([-1, 0.05], [2, 2], size=(25, 2))]

@@ -44,7 +44,8 @@ COORDINATE_RANGE = (1e-100, 1e100)
 EPS = 2.0**-53
 FILTER = 16.0 * EPS
 _SPLITTER = 134217729.0  # 2**27 + 1
-SCRATCH = 160  # capacity of an exact-sum expansion: at most 6 * 4 * 2 * 2 terms + 1
+SCRATCH = 160  # work buffer: 8 differences, 6 coefficients, then an expansion of <= 97 terms
+_EXPANSION = 16  # offset of the expansion in the work buffer
 
 
 def check_coordinates(points: np.ndarray, what: str = "point") -> None:
@@ -121,37 +122,39 @@ def _grow(e, n, b):
 
 
 @njit(cache=True)
-def _exact_sign(d, ii, jj, cc, buf):
-    """Exact sign of ``sum_k cc[k] * d[ii[k]] * d[jj[k]]``.
+def _exact_sign(ii, jj, cc, n_terms, buf):
+    """Exact sign of ``sum_k cc[k] * d[ii[k]] * d[jj[k]]``, ``k < n_terms``.
 
-    ``d`` is ``(4, 2)``: four exact differences, each as a two-component expansion.
+    The four exact differences ``d`` are in ``buf[:8]``, each as a two-component expansion
+    ``(buf[2 i], buf[2 i + 1])``; the expansion is accumulated in ``buf[16:]``.
     """
+    e = buf[_EXPANSION:]
     n = 0
-    for k in range(cc.shape[0]):
+    for k in range(n_terms):
         c = cc[k]
         if c == 0.0:
             continue
         for p in range(2):
-            a = d[ii[k], p]
+            a = buf[2 * ii[k] + p]
             if a == 0.0:
                 continue
             for q in range(2):
-                b = d[jj[k], q]
+                b = buf[2 * jj[k] + q]
                 if b == 0.0:
                     continue
                 x, y = _two_product(a, b)
                 s, t = _two_product(c, x)
-                n = _grow(buf, n, s)
+                n = _grow(e, n, s)
                 if t != 0.0:
-                    n = _grow(buf, n, t)
+                    n = _grow(e, n, t)
                 if y != 0.0:
                     s, t = _two_product(c, y)
-                    n = _grow(buf, n, s)
+                    n = _grow(e, n, s)
                     if t != 0.0:
-                        n = _grow(buf, n, t)
+                        n = _grow(e, n, t)
     if n == 0:
         return 0
-    top = buf[n - 1]
+    top = e[n - 1]
     return 1 if top > 0.0 else (-1 if top < 0.0 else 0)
 
 
@@ -164,14 +167,13 @@ _ORIENT_J = np.array([3, 2], dtype=np.int64)
 _ORIENT_C = np.array([1.0, -1.0])
 
 
-@njit(cache=True)
+@njit(inline="always", cache=True)
 def _differences(ax, ay, bx, by, cx, cy, buf):
-    d = np.empty((4, 2))
-    d[0, 0], d[0, 1] = _two_diff(bx, ax)
-    d[1, 0], d[1, 1] = _two_diff(by, ay)
-    d[2, 0], d[2, 1] = _two_diff(cx, ax)
-    d[3, 0], d[3, 1] = _two_diff(cy, ay)
-    return d
+    """Exact ``(ux, uy, wx, wy)`` as two-component expansions into ``buf[:8]``."""
+    buf[0], buf[1] = _two_diff(bx, ax)
+    buf[2], buf[3] = _two_diff(by, ay)
+    buf[4], buf[5] = _two_diff(cx, ax)
+    buf[6], buf[7] = _two_diff(cy, ay)
 
 
 @njit(cache=True)
@@ -194,9 +196,15 @@ def form_sign(ax, ay, bx, by, cx, cy, kuu, kww, kuw, buf):
         return 1
     if value < -bound:
         return -1
-    d = _differences(ax, ay, bx, by, cx, cy, buf)
-    cc = np.array([kuu, kuu, kww, kww, kuw, kuw])
-    return _exact_sign(d, _FORM_I, _FORM_J, cc, buf)
+    _differences(ax, ay, bx, by, cx, cy, buf)
+    cc = buf[8:14]
+    cc[0] = kuu
+    cc[1] = kuu
+    cc[2] = kww
+    cc[3] = kww
+    cc[4] = kuw
+    cc[5] = kuw
+    return _exact_sign(_FORM_I, _FORM_J, cc, 6, buf)
 
 
 @njit(cache=True)
@@ -210,8 +218,8 @@ def orient_sign(ax, ay, bx, by, cx, cy, buf):
         return 1
     if value < -bound:
         return -1
-    d = _differences(ax, ay, bx, by, cx, cy, buf)
-    return _exact_sign(d, _ORIENT_I, _ORIENT_J, _ORIENT_C, buf)
+    _differences(ax, ay, bx, by, cx, cy, buf)
+    return _exact_sign(_ORIENT_I, _ORIENT_J, _ORIENT_C, 2, buf)
 
 
 @njit(cache=True)
