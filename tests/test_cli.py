@@ -1,21 +1,232 @@
-"""The command line, called in-process through main()."""
+"""The command line: every subcommand through the real entry point, and its error paths."""
 
+import json
 import subprocess
 import sys
+from pathlib import Path
 
+import numpy as np
+import pytest
+
+import qdrefine
+from qdrefine import examples, quality
 from qdrefine.cli import main
 
+DATA = Path(__file__).parent / "data"
 
-def test_demo_prints_a_summary(capsys):
-    assert main(["demo", "--levels", "1"]) == 0
-    out = capsys.readouterr().out
-    for scheme in ("7t-qd", "7t-le", "7t-d", "4t-le", "4t-red"):
-        assert scheme in out
-    assert "NO" not in out
+
+def cli(*args, cwd=None):
+    """Run ``python -m qdrefine ARGS`` (the real entry point) and return the result."""
+    return subprocess.run([sys.executable, "-m", "qdrefine", *map(str, args)],
+                          capture_output=True, text=True, check=False, cwd=cwd)
 
 
 def test_python_dash_m_runs():
-    result = subprocess.run([sys.executable, "-m", "qdrefine", "--help"], capture_output=True,
-                            text=True, check=False)
+    result = cli("--help")
     assert result.returncode == 0
-    assert "demo" in result.stdout
+    for name in ("refine", "info", "quality", "plot", "compare", "demo"):
+        assert name in result.stdout
+
+
+def test_demo_prints_a_summary_and_writes_files(tmp_path, capsys):
+    assert main(["demo", str(tmp_path / "out"), "--levels", "1"]) == 0
+    out = capsys.readouterr().out
+    for scheme in ("7t-qd", "7t-le", "7t-d", "4t-le", "4t-red"):
+        assert scheme in out
+    assert " NO " not in out
+    files = sorted(p.name for p in (tmp_path / "out").iterdir())
+    assert files == ["plate_with_hole.msh", "plate_with_hole_7t-qd.msh",
+                     "plate_with_hole_7t-qd.png", "report.txt"]
+    fine = qdrefine.read(tmp_path / "out" / "plate_with_hole_7t-qd.msh")
+    assert fine.n_triangles == 7 * examples.plate_with_hole().n_triangles
+    assert "similarity classes" in (tmp_path / "out" / "report.txt").read_text()
+    assert (tmp_path / "out" / "plate_with_hole_7t-qd.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_demo_subprocess_default_directory(tmp_path):
+    result = cli("demo", "--levels", "1", "--quiet", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == "" and result.stderr == ""
+    assert (tmp_path / "qdrefine-demo" / "report.txt").exists()
+
+
+def test_refine_gmsh_keeps_every_tag(tmp_path):
+    """Acceptance: two physical surfaces and tagged lines, --levels 2."""
+    src = DATA / "two_regions_22.msh"
+    before = src.read_bytes()
+    out = tmp_path / "fine.msh"
+    result = cli("refine", src, out, "--levels", "2")
+    assert result.returncode == 0, result.stderr
+    assert src.read_bytes() == before
+    coarse, fine = qdrefine.read(src), qdrefine.read(out)
+    assert fine.n_triangles == 49 * coarse.n_triangles
+    area_c, area_f = quality.areas(coarse), quality.areas(fine)
+    for tag in np.unique(coarse.cell_tags):
+        assert area_f[fine.cell_tags == tag].sum() == pytest.approx(
+            area_c[coarse.cell_tags == tag].sum(), rel=1e-13)
+    p = fine.points
+    used = np.zeros(len(fine.edges), bool)
+    for (a, b), tag in zip(coarse.edges, coarse.edge_tags, strict=True):
+        pa, pb = coarse.points[a], coarse.points[b]
+        d = pb - pa
+        # fine edges of this tag lying on the segment a-b
+        s = ((p[fine.edges] - pa) @ d) / (d @ d)  # (K, 2) positions along a-b
+        rel = p[fine.edges] - pa
+        off = np.abs(d[0] * rel[..., 1] - d[1] * rel[..., 0]) / np.linalg.norm(d)
+        on = (fine.edge_tags == tag) & (off < 1e-12).all(1) & (s > -1e-12).all(1) \
+            & (s < 1 + 1e-12).all(1)
+        assert on.sum() == 9
+        used |= on
+        pieces = np.sort(s[on], axis=1)
+        pieces = pieces[np.argsort(pieces[:, 0])]
+        np.testing.assert_allclose(pieces[0, 0], 0, atol=1e-12)
+        np.testing.assert_allclose(pieces[-1, 1], 1, atol=1e-12)
+        np.testing.assert_allclose(pieces[1:, 0], pieces[:-1, 1], atol=1e-12)  # no gap
+    assert used.all() and len(fine.edges) == 9 * len(coarse.edges)
+
+
+def test_info_json_and_text(tmp_path):
+    result = cli("info", DATA / "two_regions_41.msh", "--json")
+    assert result.returncode == 0, result.stderr
+    d = json.loads(result.stdout)
+    assert d["triangles"] == 52 and d["conforming"] and d["counter_clockwise"]
+    assert d["area"] == pytest.approx(2.0)
+    assert d["cell_tags"]["1"]["area"] == pytest.approx(1.0)
+    assert d["edge_tags"]["10"]["length"] == pytest.approx(2.0)
+    assert d["bounding_box"] == {"xmin": 0.0, "ymin": 0.0, "xmax": 2.0, "ymax": 1.0}
+    text = cli("info", DATA / "two_regions_41.msh").stdout
+    assert "conforming            yes" in text and "edge tags             10:" in text
+
+
+def test_quality_json_and_histogram(tmp_path):
+    png = tmp_path / "h.png"
+    result = cli("quality", DATA / "two_regions_22.msh", "--json", "--histogram", png)
+    assert result.returncode == 0, result.stderr
+    d = json.loads(result.stdout)
+    mesh = qdrefine.read(DATA / "two_regions_22.msh")
+    assert d["min_angle"]["min"] == pytest.approx(quality.min_angles(mesh).min())
+    assert sum(d["min_angle_histogram"]["counts"]) == 52
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_plot_writes_a_png(tmp_path):
+    for color in ("min-angle", "tag", "none"):
+        png = tmp_path / f"{color}.png"
+        result = cli("plot", DATA / "two_regions_22.msh", png, "--color", color)
+        assert result.returncode == 0, result.stderr
+        assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_compare_json_and_plot(tmp_path):
+    png = tmp_path / "c.png"
+    result = cli("compare", DATA / "two_regions_22.msh", "--levels", "2", "--schemes",
+                 "7t-qd", "4t-red", "--json", "--plot", png)
+    assert result.returncode == 0, result.stderr
+    rows = json.loads(result.stdout)["rows"]
+    assert [(r["scheme"], r["level"]) for r in rows] == [
+        ("7t-qd", 0), ("7t-qd", 1), ("7t-qd", 2), ("4t-red", 0), ("4t-red", 1), ("4t-red", 2)]
+    assert [r["triangles"] for r in rows] == [52, 364, 2548, 52, 208, 832]
+    red = [r["similarity_classes"] for r in rows[3:]]
+    assert red[0] == red[1] == red[2]  # red refinement makes no new shapes
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+# error paths ------------------------------------------------------------------------------
+
+def bad_inputs(tmp_path: Path) -> dict[str, tuple[Path, str]]:
+    """One file per bad-input kind, with the expected message."""
+    def msh(name, nodes, elements):
+        lines = ["$MeshFormat", "2.2 0 8", "$EndMeshFormat", "$Nodes", str(len(nodes))]
+        lines += [f"{i + 1} {x} {y} {z}" for i, (x, y, z) in enumerate(nodes)]
+        lines += ["$EndNodes", "$Elements", str(len(elements))]
+        lines += [f"{i + 1} {t} 2 1 1 " + " ".join(map(str, v))
+                  for i, (t, v) in enumerate(elements)]
+        path = tmp_path / name
+        path.write_text("\n".join(lines + ["$EndElements", ""]))
+        return path
+
+    sq = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+    cases = {
+        "missing": (tmp_path / "missing.msh", "no such file"),
+        "unknown format": (tmp_path / "a.xyz", "unknown file format"),
+        "truncated": (tmp_path / "cut.msh", "not a readable Gmsh"),
+        "no triangles": (msh("lines.msh", sq, [(1, (1, 2))]), "holds no triangles"),
+        "non-triangle cells": (msh("quad.msh", sq, [(3, (1, 2, 3, 4))]), "1 quad cells"),
+        "nan": (msh("nan.msh", [(0, 0, 0), (1, 0, 0), ("nan", 1, 0)], [(2, (1, 2, 3))]),
+                "non-finite coordinate"),
+        "index out of range": (tmp_path / "idx.ele", "vertex 9 is not in idx.node"),
+        "zero area": (msh("flat.msh", [(0, 0, 0), (1, 0, 0), (2, 0, 0)], [(2, (1, 2, 3))]),
+                      "has zero area"),
+        "not flat": (msh("z.msh", [(0, 0, 0), (1, 0, 0), (0, 1, 1)], [(2, (1, 2, 3))]),
+                     "not flat"),
+    }
+    src = (DATA / "two_regions_22.msh").read_text()
+    (tmp_path / "cut.msh").write_text(src[: len(src) // 2])
+    (tmp_path / "a.xyz").write_text("hello")
+    (tmp_path / "idx.node").write_text("3 2 0 0\n0 0 0\n1 1 0\n2 0 1\n")
+    (tmp_path / "idx.ele").write_text("1 3 0\n0 0 1 9\n")
+    return cases
+
+
+@pytest.mark.parametrize("kind", ["missing", "unknown format", "truncated", "no triangles",
+                                  "non-triangle cells", "nan", "index out of range",
+                                  "zero area", "not flat"])
+def test_bad_input_gives_one_line_and_no_output(tmp_path, capsys, kind):
+    path, message = bad_inputs(tmp_path)[kind]
+    before = path.read_bytes() if path.exists() else None
+    out = tmp_path / "out.vtu"
+    for argv in (["refine", path, out], ["info", path], ["quality", path],
+                 ["plot", path, tmp_path / "p.png"], ["compare", path, "--levels", "1"]):
+        assert main([str(a) for a in argv]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith("qdrefine: error: ") and message in err, err
+        assert err.count("\n") == 1
+    assert not out.exists() and not (tmp_path / "p.png").exists()
+    assert (path.read_bytes() if path.exists() else None) == before
+
+
+def test_bad_input_through_the_entry_point(tmp_path):
+    path, _ = bad_inputs(tmp_path)["truncated"]
+    result = cli("refine", path, tmp_path / "o.msh")
+    assert result.returncode == 1
+    assert result.stderr.startswith("qdrefine: error: ") and result.stderr.count("\n") == 1
+    assert "Traceback" not in result.stderr and not (tmp_path / "o.msh").exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["refine", "IN.msh", "OUT.msh", "--levels", "x"], "expected a whole number"),
+    (["refine", "IN.msh", "OUT.msh", "--levels", "-1"], "expected a number >= 0"),
+    (["refine", "IN.msh", "OUT.msh", "--scheme", "8t"], "unknown scheme '8t'"),
+    (["refine", "IN.msh", "OUT.abc"], "unknown mesh format '.abc'"),
+    (["refine", "IN.msh", "IN.msh"], "would overwrite the input"),
+    (["refine", "IN.msh", "nodir/OUT.msh"], "does not exist"),
+    (["plot", "IN.msh", "p.jpg"], "pictures are saved as"),
+    (["plot", "IN.msh", "p.png", "--color", "pink"], "invalid choice"),
+    (["compare", "IN.msh", "--schemes", "7t-qd", "zz"], "unknown scheme 'zz'"),
+    (["quality", "IN.msh", "--tolerance", "0"], "expected a number > 0"),
+])
+def test_bad_arguments(tmp_path, monkeypatch, capsys, argv, message):
+    monkeypatch.chdir(tmp_path)
+    qdrefine.write("IN.msh", examples.square(2))
+    before = Path("IN.msh").read_bytes()
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse errors exit with 2
+        code = exc.code
+    assert code in (1, 2)
+    err = capsys.readouterr().err
+    assert err.startswith("qdrefine: error: ") and message in err and err.count("\n") == 1
+    assert Path("IN.msh").read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["IN.msh"]
+
+
+def test_clockwise_input_is_fixed_with_a_warning(tmp_path, capsys):
+    path = tmp_path / "cw.msh"
+    path.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 0 1 0\n"
+                    "3 1 0 0\n$EndNodes\n$Elements\n1\n1 2 2 1 1 1 2 3\n$EndElements\n")
+    assert main(["refine", str(path), str(tmp_path / "o.vtk"), "-q"]) == 0
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err == f"qdrefine: warning: {path}: 1 of 1 triangles were clockwise " \
+                           "and have been flipped\n"
+    assert qdrefine.read(tmp_path / "o.vtk").n_triangles == 7

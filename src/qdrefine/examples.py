@@ -13,7 +13,8 @@ LEFT, RIGHT = 1, 2  # cell tags
 
 
 def plate_with_hole(n_around: int = 32, n_rings: int = 6, radius: float = 0.4) -> Mesh:
-    """The square ``[-1, 1]^2`` with a circular hole, meshed in rings.
+    """A plate with a circular hole, meshed in rings (outer boundary: the points where
+    ``n_around`` rays meet the square ``[-1, 1]^2``, so its corners are cut).
 
     Ring ``j`` interpolates between the circle of ``radius`` (j = 0) and the square
     (j = n_rings) along ``n_around`` rays; each quadrilateral is cut by its shorter

@@ -1,28 +1,164 @@
-"""Per-triangle quality measures (vectorized; one value per triangle)."""
+"""Per-triangle quality measures (vectorized; one value per triangle).
+
+Every function takes either a :class:`~qdrefine.Mesh` or the two arrays
+``points (N, 2) float64`` and ``triangles (M, 3) int`` and returns one value (or one row)
+per triangle, in triangle order. Summaries and printing live in :mod:`qdrefine.report`.
+
+Examples
+--------
+>>> from qdrefine import examples, quality
+>>> mesh = examples.square(1)              # two right isosceles triangles
+>>> quality.min_angles(mesh)
+array([45., 45.])
+>>> quality.radius_ratios(mesh).round(4)
+array([0.8284, 0.8284])
+"""
 
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .mesh import Mesh
 
-__all__ = ["angles", "min_angles"]
+__all__ = [
+    "angles",
+    "min_angles",
+    "max_angles",
+    "areas",
+    "edge_lengths",
+    "radius_ratios",
+    "aspect_ratios",
+    "similarity_classes",
+    "min_angle_histogram",
+    "SIMILARITY_TOLERANCE",
+]
+
+#: Default tolerance (degrees) of :func:`similarity_classes`.
+SIMILARITY_TOLERANCE = 1e-6
 
 
-def angles(points: NDArray[np.float64], triangles: NDArray[np.integer]) -> NDArray[np.float64]:
+def _arrays(mesh: Mesh | ArrayLike, triangles: ArrayLike | None) -> tuple[NDArray, NDArray]:
+    if triangles is None:
+        if not isinstance(mesh, Mesh):
+            raise TypeError("give a Mesh, or points (N, 2) and triangles (M, 3)")
+        return mesh.points, mesh.triangles
+    if isinstance(mesh, Mesh):
+        raise TypeError("give a Mesh alone, or points and triangles")
+    p = np.asarray(mesh, dtype=np.float64)
+    t = np.asarray(triangles)
+    if p.ndim != 2 or p.shape[1] != 2 or t.ndim != 2 or t.shape[1] != 3:
+        raise ValueError(f"points must be (N, 2) and triangles (M, 3), got {p.shape} and "
+                         f"{t.shape}")
+    return p, t
+
+
+def _sides(p: NDArray, t: NDArray) -> tuple[NDArray, NDArray]:
+    """Edge vectors ``(M, 3, 2)``: row ``i`` goes from vertex ``i`` to vertex ``i + 1``,
+    and twice the signed area ``(M,)``."""
+    v = p[t]
+    e = np.roll(v, -1, axis=1) - v
+    cross = e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0]
+    return e, cross
+
+
+def angles(mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None) -> NDArray[np.float64]:
     """Interior angles ``(M, 3)`` in degrees; column ``i`` is the angle at ``triangles[:, i]``.
 
     Computed as ``atan2(|cross|, dot)`` of the two edge vectors, accurate also for needles.
     """
-    p = points[triangles]  # (M, 3, 2)
-    a = np.roll(p, -1, axis=1) - p
-    b = np.roll(p, 1, axis=1) - p
+    p, t = _arrays(mesh, triangles)
+    v = p[t]  # (M, 3, 2)
+    a = np.roll(v, -1, axis=1) - v
+    b = np.roll(v, 1, axis=1) - v
     cross = np.abs(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
     dot = (a * b).sum(axis=-1)
     return np.degrees(np.arctan2(cross, dot))
 
 
-def min_angles(mesh: Mesh) -> NDArray[np.float64]:
-    """Smallest interior angle ``(M,)`` of each triangle, degrees."""
-    return angles(mesh.points, mesh.triangles).min(axis=1)
+def min_angles(mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Smallest interior angle ``(M,)`` of each triangle, degrees (60 at best)."""
+    return angles(mesh, triangles).min(axis=1)
+
+
+def max_angles(mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Largest interior angle ``(M,)`` of each triangle, degrees (60 at best)."""
+    return angles(mesh, triangles).max(axis=1)
+
+
+def areas(mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Signed area ``(M,)`` of each triangle (positive for counter-clockwise)."""
+    p, t = _arrays(mesh, triangles)
+    return 0.5 * _sides(p, t)[1]
+
+
+def edge_lengths(mesh: Mesh | ArrayLike,
+                 triangles: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Side lengths ``(M, 3)``; column ``i`` is the side from vertex ``i`` to vertex ``i + 1``."""
+    p, t = _arrays(mesh, triangles)
+    e, _ = _sides(p, t)
+    return np.hypot(e[..., 0], e[..., 1])
+
+
+def radius_ratios(mesh: Mesh | ArrayLike,
+                  triangles: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Normalized radius ratio ``2 r / R`` ``(M,)``: 1 for equilateral, 0 for degenerate.
+
+    ``r`` is the inradius and ``R`` the circumradius; with side lengths ``a, b, c`` and area
+    ``A``, ``2 r / R = 16 A^2 / ((a + b + c) a b c)``.
+    """
+    p, t = _arrays(mesh, triangles)
+    e, cross = _sides(p, t)
+    lengths = np.hypot(e[..., 0], e[..., 1])
+    # 16 A^2 = 4 cross^2
+    return 4.0 * cross**2 / (lengths.sum(axis=1) * lengths.prod(axis=1))
+
+
+def aspect_ratios(mesh: Mesh | ArrayLike,
+                  triangles: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Aspect ratio ``(M,)``: longest side over smallest altitude, scaled so that an
+    equilateral triangle has 1 (``sqrt(3) l_max^2 / (4 A)``); grows without bound."""
+    p, t = _arrays(mesh, triangles)
+    e, cross = _sides(p, t)
+    lmax2 = (e**2).sum(axis=-1).max(axis=1)
+    return np.sqrt(3.0) * lmax2 / (2.0 * np.abs(cross))
+
+
+def similarity_classes(
+    mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None, *,
+    tolerance: float = SIMILARITY_TOLERANCE,
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Group triangles by shape (similarity, mirror images included).
+
+    Two triangles are in the same class when their smallest and middle interior angles,
+    rounded to a multiple of ``tolerance`` degrees, are equal (the third angle follows).
+
+    Returns
+    -------
+    labels : (M,) int64
+        Class of each triangle, ``0 .. C-1``, classes ordered by their smallest angle.
+    shapes : (C, 3) float64
+        The sorted angles (degrees) of the first triangle of each class.
+    """
+    if not tolerance > 0:
+        raise ValueError(f"tolerance must be positive, got {tolerance!r}")
+    a = np.sort(angles(mesh, triangles), axis=1)
+    key = np.round(a[:, :2] / tolerance).astype(np.int64)
+    _, first, labels = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    return labels.reshape(-1).astype(np.int64), a[first]
+
+
+def min_angle_histogram(
+    mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None, *, bin_width: float = 2.5,
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Counts of per-triangle minimum angles in bins of ``bin_width`` degrees over ``[0, 60]``.
+
+    Returns ``counts (B,)`` and ``edges (B+1,)`` as :func:`numpy.histogram` does.
+    """
+    if not 0 < bin_width <= 60:
+        raise ValueError(f"bin_width must be in (0, 60] degrees, got {bin_width!r}")
+    n = int(np.ceil(60.0 / bin_width - 1e-9))
+    edges = np.linspace(0.0, n * bin_width, n + 1)
+    values = np.clip(min_angles(mesh, triangles), 0.0, edges[-1])  # 60 + rounding counts
+    counts, edges = np.histogram(values, bins=edges)
+    return counts.astype(np.int64), edges

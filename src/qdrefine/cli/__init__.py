@@ -10,12 +10,15 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 __all__ = ["main", "COMMANDS"]
 
 #: Subcommands in the order ``--help`` lists them (module ``qdrefine.cli.<name>``).
-COMMANDS: tuple[str, ...] = ("demo",)
+COMMANDS: tuple[str, ...] = (
+    "refine", "info", "quality", "plot", "compare", "demo", "diagram", "paper",
+)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -41,6 +44,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args.handler(args))
+    except BrokenPipeError:  # e.g. `qdrefine info x.msh | head`: not an error of ours
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except (ValueError, OSError) as exc:
         print(f"qdrefine: error: {exc}", file=sys.stderr)
         return 1

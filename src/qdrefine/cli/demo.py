@@ -1,41 +1,85 @@
-"""``qdrefine demo``: refine the built-in example with every scheme and summarize."""
+"""``qdrefine demo [OUTDIR]``: refine the built-in example, summarize, write files."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
-from .. import examples
+from .. import examples, report
+from ..io import write
+from ..plot import mesh as plot_mesh
 from ..quality import min_angles
 from ..refine import refine
 from ..schemes import scheme_names
 from ..topology import conformity, euler_characteristic
+from . import _common
 
-HELP = "refine a built-in example (plate with a hole) with every scheme and summarize"
+HELP = "refine a built-in example (plate with a hole) with every scheme, write mesh, plot, report"
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--levels", type=int, default=2, help="refinement levels (default 2)")
+    _common.setup(parser)
+    parser.epilog = ("Writes OUTDIR/plate_with_hole.msh (the example), "
+                     "OUTDIR/plate_with_hole_7t-qd.msh (refined, Gmsh 2.2 with tags), "
+                     "OUTDIR/plate_with_hole_7t-qd.png (coloured by minimum angle) and "
+                     "OUTDIR/report.txt (quality report).")
+    parser.add_argument("outdir", metavar="OUTDIR", nargs="?", default="qdrefine-demo",
+                        help="directory for the files (default ./qdrefine-demo; created)")
+    parser.add_argument("--levels", type=_common.non_negative, default=2,
+                        help="refinement levels (default 2)")
 
 
 def run(args: argparse.Namespace) -> int:
+    with _common.session():
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    out = Path(args.outdir)
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(f"{out}: exists and is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    say = (lambda *a: None) if args.quiet else print
     mesh = examples.plate_with_hole()
-    print(f"example: plate with a hole, {mesh.n_points} points, {mesh.n_triangles} triangles, "
-          f"min angle {min_angles(mesh).min():.2f} deg")
+    say(f"example: plate with a hole, {mesh.n_points} points, {mesh.n_triangles} triangles, "
+        f"min angle {min_angles(mesh).min():.2f} deg")
     header = (f"{'scheme':8} {'level':>5} {'triangles':>10} {'points':>9} {'conforming':>10} "
               f"{'euler':>5} {'min angle':>9} {'mean min':>9}")
-    print(header)
-    print("-" * len(header))
+    say(header)
+    say("-" * len(header))
     chi0 = euler_characteristic(mesh)
-    for name in scheme_names():
-        fine = mesh
-        for level in range(1, args.levels + 1):
-            fine = refine(fine, name)
-            chi = euler_characteristic(fine)
-            ok = conformity(fine).ok and chi == chi0
-            angles = min_angles(fine)
-            print(f"{name:8} {level:>5} {fine.n_triangles:>10} {fine.n_points:>9} "
-                  f"{'yes' if ok else 'NO':>10} {chi:>5} "
-                  f"{angles.min():>9.3f} {np.mean(angles):>9.3f}")
+    names = scheme_names()
+    with _common.Progress(len(names) * args.levels + 3, args.quiet) as progress:
+        for name in names:
+            fine = mesh
+            for level in range(1, args.levels + 1):
+                progress.step(f"{name}, level {level}")
+                fine = refine(fine, name)
+                chi = euler_characteristic(fine)
+                ok = conformity(fine).ok and chi == chi0
+                angles = min_angles(fine)
+                say(f"{name:8} {level:>5} {fine.n_triangles:>10} {fine.n_points:>9} "
+                    f"{'yes' if ok else 'NO':>10} {chi:>5} "
+                    f"{angles.min():>9.3f} {np.mean(angles):>9.3f}")
+        progress.step("writing meshes")
+        fine = refine(mesh, "7t-qd", args.levels)
+        stem = "plate_with_hole_7t-qd"
+        files = [out / "plate_with_hole.msh", out / f"{stem}.msh", out / f"{stem}.png",
+                 out / "report.txt"]
+        write(files[0], mesh)
+        write(files[1], fine)
+        progress.step("drawing")
+        ax = plot_mesh(fine, color="min-angle",
+                       title=f"Plate with a hole, 7T-QD, {args.levels} levels: "
+                             f"{fine.n_triangles} triangles")
+        _common.save_figure(ax.figure, files[2])
+        progress.step("writing the report")
+        text = (f"{files[1].name}: the example refined by 7t-qd, {args.levels} levels\n\n"
+                + report.format_info(report.info(fine)) + "\n\n"
+                + report.format_quality(report.quality(fine)) + "\n")
+        _common.write_text(files[3], text)
+    say("")
+    say("wrote " + ", ".join(str(f) for f in files))
     return 0

@@ -1,0 +1,165 @@
+"""Helpers shared by the subcommands (not a subcommand itself)."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import sys
+import warnings
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from ..io import FORMATS, atomic_path
+
+#: Picture formats the commands can save (matplotlib's names).
+PICTURES = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
+
+
+def setup(parser: argparse.ArgumentParser, quiet: bool = True) -> None:
+    """One-line argument errors (``qdrefine: error: ...``, exit 2) and ``--quiet``."""
+    prog = parser.prog
+
+    def error(message: str) -> None:
+        print(f"qdrefine: error: {message} (see '{prog} --help')", file=sys.stderr)
+        sys.exit(2)
+
+    parser.error = error  # type: ignore[method-assign]
+    if quiet:
+        parser.add_argument("-q", "--quiet", action="store_true",
+                            help="print nothing but errors and warnings; no progress bar")
+
+
+def non_negative(text: str) -> int:
+    """argparse type: an integer >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a float > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text}")
+    return value
+
+
+@contextlib.contextmanager
+def session() -> Iterator[None]:
+    """Show Python warnings as one line ``qdrefine: warning: ...`` on stderr; use the Agg
+    backend of matplotlib."""
+    def show(message, category, filename, lineno, file=None, line=None):  # noqa: ARG001
+        print(f"qdrefine: warning: {message}", file=sys.stderr)
+
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        warnings.showwarning = show
+        yield
+
+
+def _key(path: Path) -> Path:
+    """The file identity of ``path`` (Triangle files: their common base name)."""
+    p = path.resolve()
+    if p.suffix.lower() in (".node", ".ele", ".poly"):
+        return p.with_suffix(".triangle")
+    return p
+
+
+def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
+                 binary: bool = False) -> Path:
+    """Fail early (before any long work) when ``path`` cannot be written."""
+    out = Path(path)
+    if kinds == "mesh":
+        if out.suffix.lower() not in FORMATS:
+            raise ValueError(f"{out}: unknown mesh format '{out.suffix}'; known extensions: "
+                             f"{', '.join(FORMATS)}")
+        if binary and FORMATS[out.suffix.lower()].binary is None:
+            raise ValueError(f"{out}: {FORMATS[out.suffix.lower()].name} files have no binary "
+                             "variant")
+    elif out.suffix.lower() not in PICTURES:
+        raise ValueError(f"{out}: pictures are saved as {', '.join(PICTURES)}; got "
+                         f"'{out.suffix}'")
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"{out}: directory {out.parent} does not exist")
+    for i in inputs:
+        if _key(Path(i)) == _key(out):
+            raise ValueError(f"{out}: the output would overwrite the input; choose another "
+                             "name")
+    return out
+
+
+def save_figure(fig: Any, path: str | Path, dpi: int = 150) -> None:
+    """Save a matplotlib figure atomically, then close it."""
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format=PICTURES[path.suffix.lower()], dpi=dpi)
+    finally:
+        plt.close(fig)
+
+
+def write_text(path: str | Path, text: str) -> None:
+    """Write a text file atomically."""
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
+
+
+def dumps(data: Any) -> str:
+    return json.dumps(data, indent=2)
+
+
+class Progress:
+    """A rich progress bar on stderr, shown only when stderr is a terminal and not quiet.
+
+    ``step(text)`` finishes the previous step and starts the next one.
+    """
+
+    def __init__(self, total: int, quiet: bool = False) -> None:
+        self.total = total
+        self.enabled = not quiet and sys.stderr.isatty()
+        self._bar = None
+        self._task = None
+        self._started = False
+
+    def __enter__(self) -> Progress:
+        if self.enabled:
+            from rich.console import Console
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                SpinnerColumn,
+                TextColumn,
+                TimeElapsedColumn,
+            )
+            from rich.progress import Progress as Bar
+
+            self._bar = Bar(SpinnerColumn(), TextColumn("{task.description:<28}"), BarColumn(),
+                            MofNCompleteColumn(), TimeElapsedColumn(),
+                            console=Console(stderr=True), transient=True)
+            self._bar.__enter__()
+            self._task = self._bar.add_task("starting", total=self.total)
+        return self
+
+    def step(self, text: str) -> None:
+        if self._bar is not None:
+            if self._started:
+                self._bar.advance(self._task)
+            self._started = True
+            self._bar.update(self._task, description=text)
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._bar is not None:
+            self._bar.__exit__(*exc)

@@ -1,0 +1,20 @@
+"""``qdrefine paper OUTDIR``: every figure and claim of the 7T-QD paper, recomputed."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "recompute the paper's figures, Table 1 and claims into OUTDIR (report.md, PNG, SVG)"
+
+
+def add_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("outdir", help="output directory (created if missing)")
+    parser.add_argument("--no-figures", action="store_true", help="write report.md only")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..paper import write_all
+
+    path = write_all(args.outdir, figures=not args.no_figures)
+    print(f"wrote {path} and the figures in {path.parent}")
+    return 0

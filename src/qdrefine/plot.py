@@ -1,0 +1,183 @@
+"""Pictures of meshes and of their quality, drawn with matplotlib.
+
+Every function draws into ``ax`` (a new figure's axes when ``ax`` is None) and returns the
+:class:`~matplotlib.axes.Axes`; none of them saves or shows anything (the command line
+saves). matplotlib is imported on first use; call ``matplotlib.use("Agg")`` yourself for
+headless use (the command line does).
+
+Examples
+--------
+>>> import matplotlib
+>>> matplotlib.use("Agg")
+>>> from qdrefine import examples, plot
+>>> ax = plot.mesh(examples.plate_with_hole(), color="min-angle")
+>>> ax.figure.savefig("plate.png")  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import quality
+from .mesh import Mesh
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+__all__ = ["mesh", "min_angle_histogram", "compare", "COLORS", "COMPARE_METRICS"]
+
+#: Choices of ``color`` for :func:`mesh`.
+COLORS = ("min-angle", "tag", "none")
+
+#: Metrics :func:`compare` can draw: key in the rows -> axis label.
+COMPARE_METRICS = {
+    "min_angle": "smallest angle (degrees)",
+    "mean_min_angle": "mean of minimum angles (degrees)",
+    "similarity_classes": "similarity classes",
+}
+
+
+def _axes(ax: Axes | None, figsize: tuple[float, float] = (7.0, 6.0)) -> Axes:
+    if ax is not None:
+        return ax
+    import matplotlib.pyplot as plt
+
+    return plt.figure(figsize=figsize, layout="constrained").add_subplot()
+
+
+def _choice(value: str, choices: Sequence[str], name: str) -> str:
+    if value not in choices:
+        raise ValueError(f"unknown {name} {value!r}; choose one of {', '.join(choices)}")
+    return value
+
+
+def mesh(m: Mesh, ax: Axes | None = None, *, color: str = "min-angle",
+         edges: bool | None = None, colorbar: bool = True, tagged_edges: bool = True,
+         title: str | None = None) -> Axes:
+    """Draw ``m``'s triangles, filled by a per-triangle value, and its tagged edges.
+
+    Parameters
+    ----------
+    m : Mesh
+    ax : matplotlib Axes, optional
+    color : {"min-angle", "tag", "none"}
+        Fill by the minimum angle (degrees, 0..60, colour bar), by the cell tag (one colour
+        per tag, colour bar with the tag values) or not at all.
+    edges : bool, optional
+        Draw the triangle edges; by default only when there are at most 60 000 triangles.
+    colorbar : bool
+        Add a colour bar for ``"min-angle"`` and ``"tag"``.
+    tagged_edges : bool
+        Draw the tagged edges thicker, one colour per edge tag, with a legend.
+    title : str, optional
+    """
+    import matplotlib.colors as mcolors
+    from matplotlib.collections import LineCollection
+    from matplotlib.tri import Triangulation
+
+    _choice(color, COLORS, "color")
+    p, t = np.asarray(m.points), np.asarray(m.triangles)
+    if ax is None:  # a figure shaped like the mesh, so the colour bar matches its height
+        span = np.ptp(p, axis=0)
+        ratio = float(np.clip(span[1] / span[0], 0.3, 2.0)) if span[0] > 0 else 1.0
+        ax = _axes(None, (8.0, 6.4 * ratio + 1.4))
+    tri = Triangulation(p[:, 0], p[:, 1], t)
+    if edges is None:
+        edges = m.n_triangles <= 60_000
+    lw = float(np.clip(40.0 / np.sqrt(m.n_triangles), 0.05, 0.8)) if edges else 0.0
+    edgecolor = "0.15" if edges else "face"
+    if color == "min-angle":
+        values = quality.min_angles(m)
+        art = ax.tripcolor(tri, facecolors=values, cmap="viridis", vmin=0.0, vmax=60.0,
+                           edgecolors=edgecolor, linewidth=lw)
+        if colorbar:
+            cb = ax.figure.colorbar(art, ax=ax, shrink=0.85)
+            cb.set_label("minimum angle of the triangle (degrees)")
+    elif color == "tag":
+        if m.cell_tags is None:
+            raise ValueError("the mesh has no cell tags to colour by; use color='min-angle' "
+                             "or 'none'")
+        tags, index = np.unique(np.asarray(m.cell_tags), return_inverse=True)
+        import matplotlib
+
+        base = matplotlib.colormaps["tab10" if len(tags) <= 10 else "tab20"]
+        cmap = mcolors.ListedColormap([base(i % base.N) for i in range(len(tags))])
+        norm = mcolors.BoundaryNorm(np.arange(len(tags) + 1) - 0.5, len(tags))
+        art = ax.tripcolor(tri, facecolors=index.reshape(-1).astype(float), cmap=cmap,
+                           norm=norm, edgecolors=edgecolor, linewidth=lw)
+        if colorbar:
+            cb = ax.figure.colorbar(art, ax=ax, shrink=0.85, ticks=np.arange(len(tags)))
+            cb.ax.set_yticklabels([str(int(v)) for v in tags])
+            cb.set_label("cell tag")
+    else:
+        ax.triplot(tri, color="0.2", linewidth=max(lw, 0.2))
+    if tagged_edges and m.edges is not None and len(m.edges):
+        import matplotlib
+
+        etags = np.asarray(m.edge_tags)
+        palette = matplotlib.colormaps["Set1"]
+        segs = p[np.asarray(m.edges)]
+        for i, tag in enumerate(np.unique(etags)):
+            lc = LineCollection(segs[etags == tag], colors=[palette(i % palette.N)],
+                                linewidths=2.0, label=f"edge tag {int(tag)}")
+            ax.add_collection(lc)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), ncols=4, frameon=False,
+                  fontsize="small")
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_title(title if title is not None else
+                 f"{m.n_triangles} triangles, {m.n_points} points")
+    return ax
+
+
+def min_angle_histogram(m: Mesh, ax: Axes | None = None, *, bin_width: float = 2.5,
+                        label: str | None = None, title: str | None = None) -> Axes:
+    """Bar chart of the per-triangle minimum angles of ``m`` (bins of ``bin_width`` degrees
+    over 0..60), with the smallest and mean values marked."""
+    ax = _axes(ax, (7.0, 4.0))
+    counts, edges = quality.min_angle_histogram(m, bin_width=bin_width)
+    ax.bar(edges[:-1], counts, width=np.diff(edges), align="edge", color="tab:blue",
+           edgecolor="white", label=label)
+    values = quality.min_angles(m)
+    ax.axvline(values.min(), color="tab:red", linestyle="--",
+               label=f"smallest {values.min():.2f}°")
+    ax.axvline(values.mean(), color="tab:green", linestyle=":",
+               label=f"mean {values.mean():.2f}°")
+    ax.set_xlim(0, 60)
+    ax.set_xlabel("minimum angle of the triangle (degrees)")
+    ax.set_ylabel("triangles")
+    ax.legend(loc="upper left")
+    ax.set_title(title if title is not None else
+                 f"Minimum angles of {m.n_triangles} triangles")
+    return ax
+
+
+def compare(rows: Sequence[Mapping[str, Any]], metric: str, ax: Axes | None = None, *,
+            title: str | None = None) -> Axes:
+    """One line per scheme of ``metric`` against the refinement level.
+
+    ``rows`` are dictionaries with keys ``scheme``, ``level`` and ``metric`` (as made by
+    :func:`qdrefine.report.compare`); ``metric`` is a key of :data:`COMPARE_METRICS`.
+    """
+    _choice(metric, tuple(COMPARE_METRICS), "metric")
+    ax = _axes(ax, (6.0, 4.0))
+    schemes = list(dict.fromkeys(r["scheme"] for r in rows))
+    markers = "osD^v<>"
+    for i, name in enumerate(schemes):
+        mine = [r for r in rows if r["scheme"] == name]
+        ax.plot([r["level"] for r in mine], [r[metric] for r in mine],
+                marker=markers[i % len(markers)], label=name)
+    ax.set_xlabel("refinement level")
+    ax.set_ylabel(COMPARE_METRICS[metric])
+    levels = sorted({r["level"] for r in rows})
+    ax.set_xticks(levels)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    if title is not None:
+        ax.set_title(title)
+    return ax

@@ -1,0 +1,215 @@
+"""Summaries of a mesh and of its quality, as plain dictionaries (JSON-ready) and as text.
+
+:mod:`qdrefine.quality` gives one value per triangle; this module reduces them to figures.
+
+Examples
+--------
+>>> from qdrefine import examples, report
+>>> info = report.info(examples.plate_with_hole())
+>>> info["triangles"], info["conforming"]
+(384, True)
+>>> print(report.format_quality(report.quality(examples.square(2))).splitlines()[0])
+triangles                 8
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from . import quality as q
+from .mesh import Mesh
+from .refine import refine
+from .schemes import scheme_names
+from .topology import boundary_edges, conformity, euler_characteristic
+
+__all__ = ["info", "quality", "compare", "format_info", "format_quality", "format_compare"]
+
+
+def _stats(values: np.ndarray) -> dict[str, float]:
+    return {"min": float(values.min()), "max": float(values.max()),
+            "mean": float(values.mean()), "median": float(np.median(values))}
+
+
+def info(mesh: Mesh) -> dict[str, Any]:
+    """Counts, bounding box, area, tags, conformity, orientation and angle figures."""
+    p = mesh.points
+    area = q.areas(mesh)
+    conf = conformity(mesh)
+    mins = q.min_angles(mesh)
+    out: dict[str, Any] = {
+        "points": mesh.n_points,
+        "triangles": mesh.n_triangles,
+        "unused_points": int(mesh.n_points - np.unique(mesh.triangles).size),
+        "boundary_edges": int(len(boundary_edges(mesh))),
+        "euler_characteristic": euler_characteristic(mesh),
+        "bounding_box": {"xmin": float(p[:, 0].min()), "ymin": float(p[:, 1].min()),
+                         "xmax": float(p[:, 0].max()), "ymax": float(p[:, 1].max())},
+        "area": float(area.sum()),
+        "counter_clockwise": bool((area > 0).all()),
+        "conforming": conf.ok,
+        "conformity": {"overused_edges": conf.overused_edges,
+                       "misoriented_edges": conf.misoriented_edges,
+                       "hanging_nodes": conf.hanging_nodes,
+                       "duplicate_points": conf.duplicate_points},
+        "cell_tags": None,
+        "edge_tags": None,
+        "min_angle": {"min": float(mins.min()), "max": float(mins.max()),
+                      "mean": float(mins.mean())},
+    }
+    if mesh.cell_tags is not None:
+        tags, inv = np.unique(np.asarray(mesh.cell_tags), return_inverse=True)
+        inv = inv.reshape(-1)
+        out["cell_tags"] = {
+            str(int(t)): {"triangles": int(c), "area": float(a)}
+            for t, c, a in zip(tags, np.bincount(inv), np.bincount(inv, weights=area),
+                               strict=True)}
+    if mesh.edges is not None:
+        tags, inv = np.unique(np.asarray(mesh.edge_tags), return_inverse=True)
+        inv = inv.reshape(-1)
+        seg = p[mesh.edges[:, 1]] - p[mesh.edges[:, 0]]
+        length = np.hypot(seg[:, 0], seg[:, 1])
+        out["edge_tags"] = {
+            str(int(t)): {"edges": int(c), "length": float(s)}
+            for t, c, s in zip(tags, np.bincount(inv), np.bincount(inv, weights=length),
+                               strict=True)}
+    return out
+
+
+def quality(mesh: Mesh, *, bin_width: float = 2.5,
+            tolerance: float = q.SIMILARITY_TOLERANCE) -> dict[str, Any]:
+    """Figures of every per-triangle measure of :mod:`qdrefine.quality`, the minimum-angle
+    histogram and the number of similarity classes (up to ``tolerance`` degrees)."""
+    mins = q.min_angles(mesh)
+    counts, edges = q.min_angle_histogram(mesh, bin_width=bin_width)
+    labels, _ = q.similarity_classes(mesh, tolerance=tolerance)
+    return {
+        "triangles": mesh.n_triangles,
+        "min_angle": _stats(mins),
+        "max_angle": _stats(q.max_angles(mesh)),
+        "radius_ratio": _stats(q.radius_ratios(mesh)),
+        "aspect_ratio": _stats(q.aspect_ratios(mesh)),
+        "below_20_degrees": int((mins < 20).sum()),
+        "above_120_degrees": int((q.max_angles(mesh) > 120).sum()),
+        "similarity_classes": int(labels.max()) + 1,
+        "similarity_tolerance_degrees": tolerance,
+        "min_angle_histogram": {"bin_edges": edges.tolist(), "counts": counts.tolist()},
+    }
+
+
+def compare(mesh: Mesh, schemes: Sequence[str] | None = None, levels: int = 2, *,
+            tolerance: float = q.SIMILARITY_TOLERANCE,
+            step: Callable[[str, int], None] | None = None) -> list[dict[str, Any]]:
+    """Refine ``mesh`` with each scheme level by level, and measure every level.
+
+    Returns one row per scheme and level ``0..levels`` (level 0 is ``mesh``) with keys
+    ``scheme, level, triangles, points, min_angle, mean_min_angle, similarity_classes``.
+    ``step(scheme, level)`` is called after each level (for progress bars).
+    """
+    names = list(scheme_names() if schemes is None else schemes)
+    if levels < 0:
+        raise ValueError(f"levels must be >= 0, got {levels}")
+    rows = []
+    for name in names:
+        fine = mesh
+        for level in range(levels + 1):
+            if level:
+                fine = refine(fine, name)
+            mins = q.min_angles(fine)
+            labels, _ = q.similarity_classes(fine, tolerance=tolerance)
+            rows.append({"scheme": name, "level": level, "triangles": fine.n_triangles,
+                         "points": fine.n_points, "min_angle": float(mins.min()),
+                         "mean_min_angle": float(mins.mean()),
+                         "similarity_classes": int(labels.max()) + 1})
+            if step is not None:
+                step(name, level)
+    return rows
+
+
+def _table(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
+    rows = [[str(c) for c in r] for r in rows]
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h)
+              for i, h in enumerate(header)]
+    line = "  ".join(h.ljust(w) if i == 0 else h.rjust(w)
+                     for i, (h, w) in enumerate(zip(header, widths, strict=True)))
+    out = [line, "-" * len(line)]
+    for r in rows:
+        out.append("  ".join(c.ljust(w) if i == 0 else c.rjust(w)
+                             for i, (c, w) in enumerate(zip(r, widths, strict=True))))
+    return "\n".join(out)
+
+
+def format_info(d: dict[str, Any]) -> str:
+    """Text for :func:`info`'s dictionary."""
+    b = d["bounding_box"]
+    c = d["conformity"]
+    a = d["min_angle"]
+    lines = [
+        f"points                {d['points']} ({d['unused_points']} unused)",
+        f"triangles             {d['triangles']}",
+        f"boundary edges        {d['boundary_edges']}",
+        f"Euler characteristic  {d['euler_characteristic']}",
+        f"bounding box          [{b['xmin']:.6g}, {b['xmax']:.6g}] x "
+        f"[{b['ymin']:.6g}, {b['ymax']:.6g}]",
+        f"area                  {d['area']:.10g}",
+        f"orientation           "
+        f"{'all counter-clockwise' if d['counter_clockwise'] else 'NOT all counter-clockwise'}",
+        f"conforming            {'yes' if d['conforming'] else 'NO'} "
+        f"({c['overused_edges']} overused edges, {c['misoriented_edges']} misoriented, "
+        f"{c['hanging_nodes']} hanging nodes, {c['duplicate_points']} duplicate points)",
+        f"minimum angle         smallest {a['min']:.4f}, largest {a['max']:.4f}, "
+        f"mean {a['mean']:.4f} degrees",
+    ]
+    if d["cell_tags"] is None:
+        lines.append("cell tags             none")
+    else:
+        lines.append("cell tags             " + ", ".join(
+            f"{t}: {v['triangles']} triangles, area {v['area']:.6g}"
+            for t, v in d["cell_tags"].items()))
+    if d["edge_tags"] is None:
+        lines.append("edge tags             none")
+    else:
+        lines.append("edge tags             " + ", ".join(
+            f"{t}: {v['edges']} edges, length {v['length']:.6g}"
+            for t, v in d["edge_tags"].items()))
+    return "\n".join(lines)
+
+
+def format_quality(d: dict[str, Any]) -> str:
+    """Text for :func:`quality`'s dictionary: a table of measures and a text histogram."""
+    head = [f"{'triangles':<25} {d['triangles']}"]
+    rows = []
+    for key, label in (("min_angle", "minimum angle (deg)"), ("max_angle", "maximum angle (deg)"),
+                       ("radius_ratio", "radius ratio 2r/R"),
+                       ("aspect_ratio", "aspect ratio")):
+        s = d[key]
+        rows.append([label, f"{s['min']:.4f}", f"{s['mean']:.4f}", f"{s['median']:.4f}",
+                     f"{s['max']:.4f}"])
+    table = _table(["measure", "min", "mean", "median", "max"], rows)
+    tail = [
+        f"{'min angle < 20 deg':<25} {d['below_20_degrees']}",
+        f"{'max angle > 120 deg':<25} {d['above_120_degrees']}",
+        f"{'similarity classes':<25} {d['similarity_classes']} "
+        f"(two smallest angles equal to {d['similarity_tolerance_degrees']:g} deg)",
+        "",
+        "minimum-angle histogram (degrees)",
+    ]
+    h = d["min_angle_histogram"]
+    counts, edges = h["counts"], h["bin_edges"]
+    top = max(max(counts), 1)
+    for i, c in enumerate(counts):
+        if c:
+            bar = "#" * max(1, round(40 * c / top))
+            tail.append(f"  {edges[i]:5.1f} - {edges[i + 1]:5.1f}  {c:>9}  {bar}")
+    return "\n".join(head + [table] + tail)
+
+
+def format_compare(rows: Sequence[dict[str, Any]]) -> str:
+    """Text table for :func:`compare`'s rows."""
+    return _table(
+        ["scheme", "level", "triangles", "points", "min angle", "mean min angle",
+         "similarity classes"],
+        [[r["scheme"], r["level"], r["triangles"], r["points"], f"{r['min_angle']:.4f}",
+          f"{r['mean_min_angle']:.4f}", r["similarity_classes"]] for r in rows])

@@ -1,0 +1,282 @@
+"""Reading and writing every format: round trips, Gmsh files with tags, bad input."""
+
+import os
+import stat
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import qdrefine
+from meshes import jittered_grid
+from qdrefine import Mesh, examples, io, quality
+
+DATA = Path(__file__).parent / "data"
+TAGGED = [ext for ext, f in io.FORMATS.items() if f.tags]
+UNTAGGED = [ext for ext, f in io.FORMATS.items() if not f.tags]
+
+
+def same_mesh(a: Mesh, b: Mesh) -> None:
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.triangles, b.triangles)
+    for name in ("cell_tags", "edges", "edge_tags"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            np.testing.assert_array_equal(x, y)
+
+
+def triangle_set(m: Mesh) -> set:
+    """Triangles as sets of coordinate tuples (independent of numbering and rotation)."""
+    return {frozenset(map(tuple, m.points[t].tolist())) for t in m.triangles}
+
+
+@pytest.mark.parametrize("ext", TAGGED)
+def test_round_trip_keeps_everything(tmp_path, ext):
+    mesh = jittered_grid(6, seed=3)  # shuffled, cell tags 0/1, edge tags 1..4
+    path = tmp_path / f"m{ext}"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        qdrefine.write(path, mesh)
+        back = qdrefine.read(path)
+    same_mesh(mesh, back)
+
+
+@pytest.mark.parametrize("ext", [ext for ext, f in io.FORMATS.items() if f.binary is not None])
+def test_binary_round_trip(tmp_path, ext):
+    mesh = jittered_grid(6, seed=5)
+    if not io.FORMATS[ext].tags:
+        mesh = Mesh(mesh.points, mesh.triangles)
+    qdrefine.write(tmp_path / f"m{ext}", mesh, binary=True)
+    back = qdrefine.read(tmp_path / f"m{ext}")
+    if ext == ".stl":  # float32 coordinates, points merged
+        assert back.n_triangles == mesh.n_triangles
+        return
+    same_mesh(mesh, back)
+
+
+def test_binary_is_refused_where_there_is_none(tmp_path):
+    with pytest.raises(ValueError, match="no binary variant"):
+        qdrefine.write(tmp_path / "m.xdmf", examples.square(1), binary=True)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("ext", TAGGED)
+def test_round_trip_without_tags(tmp_path, ext):
+    mesh = examples.square(3)
+    qdrefine.write(tmp_path / f"m{ext}", mesh)
+    same_mesh(mesh, qdrefine.read(tmp_path / f"m{ext}"))
+
+
+@pytest.mark.parametrize("ext", TAGGED)
+def test_round_trip_edges_without_cell_tags(tmp_path, ext):
+    m = jittered_grid(3, seed=1)
+    mesh = Mesh(m.points, m.triangles, None, m.edges, m.edge_tags)
+    qdrefine.write(tmp_path / f"m{ext}", mesh)
+    same_mesh(mesh, qdrefine.read(tmp_path / f"m{ext}"))
+
+
+@pytest.mark.parametrize("ext", UNTAGGED)
+def test_formats_without_tags_keep_the_geometry_and_warn(tmp_path, ext):
+    mesh = jittered_grid(5, seed=7)
+    with pytest.warns(UserWarning, match="hold no tags"):
+        qdrefine.write(tmp_path / f"m{ext}", mesh)
+    back = qdrefine.read(tmp_path / f"m{ext}")
+    assert back.cell_tags is None and back.edges is None
+    if ext == ".stl":  # STL stores each triangle's corners: points are merged and renumbered
+        assert triangle_set(back) == triangle_set(mesh)
+    else:
+        np.testing.assert_array_equal(back.points, mesh.points)
+        np.testing.assert_array_equal(back.triangles, mesh.triangles)
+
+
+def test_gmsh_22_and_41_files_with_physical_groups():
+    m22 = qdrefine.read(DATA / "two_regions_22.msh")
+    m41 = qdrefine.read(DATA / "two_regions_41.msh")
+    same_mesh(m22, m41)
+    assert m22.points.shape == (36, 2)
+    area = quality.areas(m22)
+    for tag in (1, 2):  # two unit squares
+        assert area[m22.cell_tags == tag].sum() == pytest.approx(1.0)
+    lengths = np.linalg.norm(np.diff(m22.points[m22.edges], axis=1)[:, 0], axis=1)
+    expected = {10: 2.0, 11: 1.0, 12: 2.0, 13: 1.0, 20: 1.0}  # bottom, outlet, top, inlet, mid
+    assert sorted(np.unique(m22.edge_tags).tolist()) == sorted(expected)
+    for tag, length in expected.items():
+        assert lengths[m22.edge_tags == tag].sum() == pytest.approx(length)
+
+
+def test_msh_output_is_version_22_with_line_tags(tmp_path):
+    qdrefine.write(tmp_path / "a.msh", examples.plate_with_hole())
+    text = (tmp_path / "a.msh").read_text()
+    assert text.startswith("$MeshFormat\n2.2 0 8\n")
+    # element type 1 (line) with physical tag 2 (the hole)
+    assert any(line.split()[1:4] == ["1", "2", "2"] for line in
+               text.split("$Elements\n")[1].splitlines()[1:] if len(line.split()) > 3)
+
+
+def msh22(nodes, elements) -> str:
+    """A hand-made Gmsh 2.2 ASCII file: nodes (x, y, z), elements (type, physical, nodes)."""
+    out = ["$MeshFormat", "2.2 0 8", "$EndMeshFormat", "$Nodes", str(len(nodes))]
+    out += [f"{i + 1} {x!r} {y!r} {z!r}" for i, (x, y, z) in enumerate(nodes)]
+    out += ["$EndNodes", "$Elements", str(len(elements))]
+    out += [f"{i + 1} {typ} 2 {tag} {tag} " + " ".join(str(v) for v in vs)
+            for i, (typ, tag, vs) in enumerate(elements)]
+    out += ["$EndElements", ""]
+    return "\n".join(out)
+
+
+SQUARE_NODES = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (1.0, 1.0, 0.0), (0.0, 1.0, 0.0)]
+
+
+def test_clockwise_triangles_are_flipped_with_a_warning(tmp_path):
+    path = tmp_path / "cw.msh"
+    path.write_text(msh22(SQUARE_NODES, [(2, 1, (1, 2, 3)), (2, 1, (1, 3, 4)[::-1])]))
+    with pytest.warns(UserWarning, match="1 of 2 triangles were clockwise"):
+        m = qdrefine.read(path)
+    assert (quality.areas(m) > 0).all()
+
+
+BAD_MSH = {
+    "not flat": msh22([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.5)], [(2, 1, (1, 2, 3))]),
+    "holds no triangles": msh22(SQUARE_NODES, [(1, 1, (1, 2))]),
+    "4 quad cells": msh22(SQUARE_NODES, [(3, 1, (1, 2, 3, 4))] * 4),
+    "zero area": msh22(SQUARE_NODES[:2] + [(2.0, 0.0, 0.0)], [(2, 1, (1, 2, 3))]),
+    "non-finite": msh22([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (float("nan"), 1.0, 0.0)],
+                        [(2, 1, (1, 2, 3))]),
+    "not an edge of any triangle": msh22(SQUARE_NODES, [(2, 1, (1, 2, 3)), (2, 1, (1, 3, 4)),
+                                                        (1, 5, (2, 4))]),
+    "not a readable": "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n",
+}
+
+
+@pytest.mark.parametrize("problem", list(BAD_MSH))
+def test_bad_gmsh_content_is_refused_naming_the_file(tmp_path, problem):
+    path = tmp_path / "bad.msh"
+    path.write_text(BAD_MSH[problem])
+    with pytest.raises(ValueError, match=problem) as info:
+        qdrefine.read(path)
+    assert str(path) in str(info.value)
+
+
+def test_bad_files_and_names(tmp_path):
+    with pytest.raises(FileNotFoundError, match="missing.msh: no such file"):
+        qdrefine.read(tmp_path / "missing.msh")
+    with pytest.raises(ValueError, match=r"unknown file format \(extension '.xyz'\)"):
+        qdrefine.read(tmp_path / "a.xyz")
+    with pytest.raises(ValueError, match="unknown file format"):
+        qdrefine.write(tmp_path / "a.xyz", examples.square(1))
+    (tmp_path / "junk.vtu").write_bytes(os.urandom(300))
+    with pytest.raises(ValueError, match="junk.vtu: not a readable VTK XML"):
+        qdrefine.read(tmp_path / "junk.vtu")
+    (tmp_path / "dir.msh").mkdir()
+    with pytest.raises(IsADirectoryError):
+        qdrefine.read(tmp_path / "dir.msh")
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        qdrefine.write(tmp_path / "nowhere" / "a.msh", examples.square(1))
+    assert not (tmp_path / "nowhere").exists()
+
+
+def test_write_is_atomic(tmp_path, monkeypatch):
+    import meshio
+
+    path = tmp_path / "keep.vtu"
+    path.write_text("old content")
+
+    def broken(filename, *args, **kwargs):
+        Path(filename).write_text("partial")
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(meshio, "write", broken)
+    with pytest.raises(RuntimeError, match="disk full"):
+        qdrefine.write(path, examples.square(2))
+    assert path.read_text() == "old content"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.vtu"]
+
+
+def test_new_files_get_ordinary_permissions(tmp_path):
+    umask = os.umask(0o022)
+    try:
+        qdrefine.write(tmp_path / "a.vtk", examples.square(1))
+    finally:
+        os.umask(umask)
+    assert stat.S_IMODE((tmp_path / "a.vtk").stat().st_mode) == 0o644
+
+
+# Triangle's own files -------------------------------------------------------------------
+
+NODE = """# a unit square with its centre, numbered from 1
+5 2 0 1
+1 0 0 1
+2 1 0 1
+3 1 1 1
+4 0 1 1
+5 0.5 0.5 0
+"""
+ELE = """4 3 1
+1 1 2 5 7
+2 2 3 5 7
+3 3 4 5 8   # a comment
+4 4 1 5 8
+"""
+POLY = """0 2 0 1
+4 1
+1 1 2 3
+2 2 3 3
+3 3 4 0
+4 4 1 9
+0
+"""
+
+
+def test_triangle_files_numbered_from_one(tmp_path):
+    for ext, text in ((".node", NODE), (".ele", ELE), (".poly", POLY)):
+        (tmp_path / f"sq{ext}").write_text(text)
+    for name in ("sq.ele", "sq.node", "sq.poly"):
+        m = qdrefine.read(tmp_path / name)
+        np.testing.assert_array_equal(m.triangles, [[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+        np.testing.assert_array_equal(m.cell_tags, [7, 7, 8, 8])
+        np.testing.assert_array_equal(m.edges, [[0, 1], [1, 2], [3, 0]])  # marker 0 dropped
+        np.testing.assert_array_equal(m.edge_tags, [3, 3, 9])
+
+
+def test_triangle_without_poly_has_no_edges(tmp_path):
+    (tmp_path / "sq.node").write_text(NODE)
+    (tmp_path / "sq.ele").write_text(ELE)
+    assert qdrefine.read(tmp_path / "sq.ele").edges is None
+
+
+def test_triangle_write_replaces_a_stale_poly(tmp_path):
+    (tmp_path / "m.poly").write_text(POLY)
+    qdrefine.write(tmp_path / "m.ele", examples.square(2))
+    assert qdrefine.read(tmp_path / "m.ele").edges is None
+
+
+BAD_TRIANGLE = {
+    "bad number": (".node", NODE.replace("2 1 0 1", "2 1 x 1"), "sq.node:4: expected numbers"),
+    "truncated": (".node", "\n".join(NODE.splitlines()[:4]), "sq.node:4: file ends early"),
+    "dimension": (".node", NODE.replace("5 2 0 1", "5 3 0 1"), "sq.node:2: dimension must be 2"),
+    "numbering": (".node", NODE.replace("4 0 1 1", "7 0 1 1"), "sq.node:6: expected vertex 4"),
+    "out of range": (".ele", ELE.replace("1 1 2 5 7", "1 1 2 6 7"),
+                     "sq.ele:2: vertex 6 is not in sq.node"),
+    "not integer tag": (".ele", ELE.replace("5 7\n", "5 7.5\n", 1),
+                        "sq.ele:2: the regional attribute 7.5"),
+    "no triangles": (".ele", "0 3 0\n", "sq.ele: holds no triangles"),
+    "segment": (".poly", POLY.replace("1 1 2 3", "1 1 3 3"),
+                "sq.poly:3: segment \\(1, 3\\) is not an edge"),
+    "zero area": (".node", NODE.replace("5 0.5 0.5 0", "5 0.5 0 0"),
+                  "sq.ele: triangle 0 .* has zero area"),
+}
+
+
+@pytest.mark.parametrize("problem", list(BAD_TRIANGLE))
+def test_bad_triangle_files_name_file_and_line(tmp_path, problem):
+    ext, text, message = BAD_TRIANGLE[problem]
+    files = {".node": NODE, ".ele": ELE, ".poly": POLY}
+    files[ext] = text
+    for e, t in files.items():
+        (tmp_path / f"sq{e}").write_text(t)
+    with pytest.raises(ValueError, match=message):
+        qdrefine.read(tmp_path / "sq.ele")
+    with pytest.raises(FileNotFoundError, match="other.node: no such file"):
+        qdrefine.read(tmp_path / "other.ele")

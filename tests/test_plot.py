@@ -1,0 +1,61 @@
+"""Plots draw into the given Axes, return it, and never save."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from qdrefine import examples, plot, quality, refine, report  # noqa: E402
+
+
+@pytest.fixture(autouse=True)
+def _close_figures(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    yield
+    assert list(tmp_path.iterdir()) == []  # nothing saved
+    plt.close("all")
+
+
+def test_mesh_by_min_angle_has_one_face_per_triangle_and_a_colour_bar():
+    m = examples.plate_with_hole()
+    ax = plot.mesh(m)
+    faces = [c for c in ax.collections if hasattr(c, "get_array") and c.get_array() is not None
+             and len(c.get_array()) == m.n_triangles]
+    assert len(faces) == 1
+    values = np.asarray(faces[0].get_array())
+    np.testing.assert_allclose(values, quality.min_angles(m))
+    assert len(ax.figure.axes) == 2  # the mesh and its colour bar
+    assert "minimum angle" in ax.figure.axes[1].get_ylabel()
+    assert len(ax.get_legend().get_texts()) == 2  # two edge tags
+
+
+def test_mesh_by_tag_draws_into_the_given_axes():
+    fig, ax = plt.subplots()
+    m = examples.plate_with_hole()
+    assert plot.mesh(m, ax, color="tag") is ax
+    labels = [t.get_text() for t in fig.axes[1].get_yticklabels()]
+    assert labels == ["1", "2"]
+    with pytest.raises(ValueError, match="no cell tags"):
+        plot.mesh(examples.square(2), color="tag")
+    with pytest.raises(ValueError, match="choose one of min-angle, tag, none"):
+        plot.mesh(m, color="rainbow")
+    ax2 = plot.mesh(examples.square(2), color="none")
+    assert len(ax2.figure.axes) == 1  # no colour bar
+
+
+def test_histogram_bars_count_every_triangle():
+    m = refine(examples.plate_with_hole(), "7t-qd")
+    ax = plot.min_angle_histogram(m)
+    assert sum(p.get_height() for p in ax.patches) == m.n_triangles
+
+
+def test_compare_draws_one_line_per_scheme():
+    rows = report.compare(examples.square(2), ["7t-qd", "4t-red"], levels=2)
+    ax = plot.compare(rows, "similarity_classes")
+    assert [line.get_label() for line in ax.get_lines()] == ["7t-qd", "4t-red"]
+    np.testing.assert_array_equal(ax.get_lines()[1].get_ydata(), [1, 1, 1])
+    with pytest.raises(ValueError, match="unknown metric"):
+        plot.compare(rows, "beauty")

@@ -1,0 +1,103 @@
+"""Per-triangle quality measures against values derived by hand."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from meshes import jittered_grid
+from qdrefine import Mesh, examples, quality, refine
+
+SQRT3 = np.sqrt(3.0)
+EQUILATERAL = (np.array([[0.0, 0.0], [2.0, 0.0], [1.0, SQRT3]]), np.array([[0, 1, 2]]))
+# right isosceles with legs 1: r = (2 - sqrt2) / 2, R = sqrt2 / 2
+RIGHT = (np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), np.array([[0, 1, 2]]))
+
+
+def test_equilateral_is_perfect_on_every_measure():
+    p, t = EQUILATERAL
+    np.testing.assert_allclose(quality.angles(p, t), [[60, 60, 60]])
+    np.testing.assert_allclose(quality.radius_ratios(p, t), [1.0])
+    np.testing.assert_allclose(quality.aspect_ratios(p, t), [1.0])
+    np.testing.assert_allclose(quality.areas(p, t), [SQRT3])
+    np.testing.assert_allclose(quality.edge_lengths(p, t), [[2, 2, 2]])
+
+
+def test_right_isosceles_values():
+    p, t = RIGHT
+    np.testing.assert_allclose(quality.angles(p, t), [[90, 45, 45]])
+    r, big_r = (2 - np.sqrt(2)) / 2, np.sqrt(2) / 2
+    np.testing.assert_allclose(quality.radius_ratios(p, t), [2 * r / big_r])
+    # longest side sqrt2, smallest altitude sqrt2/2; equilateral ratio 2/sqrt3
+    np.testing.assert_allclose(quality.aspect_ratios(p, t), [2 / (2 / SQRT3)])
+    np.testing.assert_allclose(quality.max_angles(p, t), [90])
+    np.testing.assert_allclose(quality.min_angles(p, t), [45])
+
+
+def test_mesh_and_arrays_agree_and_misuse_is_refused():
+    m = examples.plate_with_hole()
+    np.testing.assert_array_equal(quality.min_angles(m), quality.min_angles(m.points,
+                                                                            m.triangles))
+    with pytest.raises(TypeError):
+        quality.min_angles(m.points)
+    with pytest.raises(TypeError):
+        quality.min_angles(m, m.triangles)
+    with pytest.raises(ValueError, match=r"\(M, 3\)"):
+        quality.min_angles(m.points, m.triangles[:, :2])
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), shear=st.one_of(st.just(0.0), st.floats(0.01, 3.0)))
+def test_invariants_on_random_meshes(seed, shear):
+    m = jittered_grid(5, seed, shear=shear)
+    a = quality.angles(m)
+    np.testing.assert_allclose(a.sum(axis=1), 180.0)
+    assert (quality.areas(m) > 0).all()
+    rr, ar = quality.radius_ratios(m), quality.aspect_ratios(m)
+    assert ((rr > 0) & (rr <= 1 + 1e-12)).all() and (ar >= 1 - 1e-12).all()
+    # similarity invariance: rotate, scale, translate, reflect
+    c, s = np.cos(0.7), np.sin(0.7)
+    moved = 3.5 * m.points @ np.array([[c, -s], [s, c]]).T + [10.0, -4.0]
+    mirror = moved * [-1.0, 1.0]
+    for p, t in ((moved, m.triangles), (mirror, m.triangles[:, ::-1])):
+        np.testing.assert_allclose(quality.radius_ratios(p, t), rr, rtol=1e-9)
+        np.testing.assert_allclose(quality.aspect_ratios(p, t), ar, rtol=1e-9)
+        np.testing.assert_allclose(np.sort(quality.angles(p, t), 1), np.sort(a, 1), atol=1e-9)
+    # one value per triangle, in triangle order
+    rolled = np.roll(m.triangles, 1, axis=1)
+    np.testing.assert_allclose(quality.min_angles(m.points, rolled), quality.min_angles(m))
+
+
+def test_similarity_classes():
+    p = np.array([[0.0, 0.0], [1.0, 0.0], [0.2, 0.6],  # a triangle
+                  [5.0, 5.0], [5.0, 7.0], [3.8, 5.4],  # the same, rotated and doubled
+                  [0.0, 9.0], [-1.0, 9.0], [-0.2, 9.6],  # mirrored
+                  [3.0, 0.0], [4.0, 0.0], [3.5, 1.0]])  # another shape
+    t = np.array([[0, 1, 2], [3, 4, 5], [6, 8, 7], [9, 10, 11]])
+    labels, shapes = quality.similarity_classes(p, t)
+    assert labels[0] == labels[1] == labels[2] != labels[3]
+    assert shapes.shape == (2, 3)
+    np.testing.assert_allclose(shapes.sum(axis=1), 180.0)
+    # red refinement keeps one shape: four children similar to the parent
+    one = Mesh(p[:3], t[:1])
+    assert quality.similarity_classes(refine(one, "4t-red", 3))[0].max() == 0
+    # the tolerance matters: two shapes 1e-3 degrees apart merge at tolerance 1
+    q = np.array([[0.0, 0.0], [1.0, 0.0], [0.3, 0.5], [0.0, 2.0], [1.0, 2.0], [0.3, 2.50001]])
+    tt = np.array([[0, 1, 2], [3, 4, 5]])
+    assert quality.similarity_classes(q, tt)[0].tolist() == [0, 1]
+    assert quality.similarity_classes(q, tt, tolerance=1.0)[0].tolist() == [0, 0]
+    with pytest.raises(ValueError, match="tolerance"):
+        quality.similarity_classes(q, tt, tolerance=0)
+
+
+def test_min_angle_histogram_counts_every_triangle():
+    m = refine(examples.plate_with_hole(), "7t-qd")
+    counts, edges = quality.min_angle_histogram(m, bin_width=5)
+    assert counts.sum() == m.n_triangles
+    np.testing.assert_allclose(edges, np.arange(0, 61, 5))
+    mins = quality.min_angles(m)
+    assert counts[int(mins.min() // 5)] > 0
+    p, t = EQUILATERAL  # 60 degrees (or a rounding above) lands in the last bin
+    assert quality.min_angle_histogram(p, t)[0][-1] == 1
+    with pytest.raises(ValueError, match="bin_width"):
+        quality.min_angle_histogram(m, bin_width=0)
