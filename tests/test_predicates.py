@@ -5,10 +5,10 @@ from fractions import Fraction
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from oracle import exact, orient
-from shapes import coordinate
 
+from oracle import exact, orient
 from qdrefine.predicates import form_sign, new_scratch, orient_sign
+from shapes import coordinate
 
 points = st.tuples(coordinate, coordinate)
 small = st.integers(-20, 20)

@@ -1,0 +1,179 @@
+"""The mapping diagram: classification against exact oracles and the partitions themselves,
+exact arc areas against independent closed forms and quasi-Monte Carlo, convergence."""
+
+import json
+import math
+from fractions import Fraction as F
+
+import numpy as np
+import pytest
+
+from oracle import definition1_case, incircle, orient, seven_points
+from qdrefine import diagram as dg
+from qdrefine import partition
+from qdrefine.cli import main
+from qdrefine.stencil import fan
+
+
+def random_half_points(n, seed):
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < n:
+        x, y = rng.uniform(0, 0.5), rng.uniform(1e-3, 0.87)
+        if (x - 1) ** 2 + y * y < 1:
+            out.append((x, y))
+    return np.array(out)
+
+
+def shaded_points(n, seed):
+    rng = np.random.default_rng(seed)
+    p = np.column_stack([rng.uniform(0.395, 0.5, 20 * n), rng.uniform(1e-3, 0.32, 20 * n)])
+    keep = dg._pred("shaded")(p[:, 0], p[:, 1])
+    return p[keep][:n]
+
+
+def delaunay_fan(m, n, o):
+    """First fan (B, D, O, A, C) whose two diagonals are locally Delaunay, exactly."""
+    s = seven_points(m, n, o)
+    for apex in "BDOAC":
+        ok = True
+        for tri in fan(apex):
+            a, b, c = (s[k] for k in tri)
+            sign = 1 if orient(a, b, c) > 0 else -1
+            for other in "DCBOA":
+                if other not in tri and incircle(a, b, c, s[other]) * sign > 0:
+                    ok = False
+        if ok:
+            return apex
+    raise AssertionError
+
+
+def test_regions_match_exact_oracles():
+    pts = np.concatenate([random_half_points(150, 1), shaded_points(50, 2)])
+    masks = dg.region_masks(pts[:, 0], pts[:, 1])
+    for i, (x, y) in enumerate(pts):
+        m, n, o = (F(0), F(0)), (F(1), F(0)), (F(float(x)), F(float(y)))
+        case = definition1_case(m, n, o)
+        assert masks[case][i]
+        qd_apex = {"I": "B", "II": "D", "III": "O"}[case]
+        assert masks["shaded"][i] == (delaunay_fan(m, n, o) != qd_apex)
+
+
+def test_regions_match_the_partitions():
+    pts = np.concatenate([random_half_points(100, 3), shaded_points(40, 4)])
+    masks = dg.region_masks(pts[:, 0], pts[:, 1])
+    for i, (x, y) in enumerate(pts):
+        v = np.array([[0.0, 0.0], [1.0, 0.0], [x, y]])
+        tris = {s: {frozenset(t) for t in partition(v, s)[1].tolist()}
+                for s in ("7t-qd", "7t-d", "7t-le")}
+        assert masks["shaded"][i] == (tris["7t-qd"] != tris["7t-d"])
+        assert masks["I"][i] == (tris["7t-qd"] == tris["7t-le"])
+    # the min angle used by the regions is the one of the partition's pentagon triangles
+    x, y = shaded_points(1, 5)[0]
+    pts9, tris = partition(np.array([[0.0, 0.0], [1.0, 0.0], [x, y]]), "7t-qd")
+    p = pts9[tris[4:]]
+    ang = dg._tri_angles(p).min()
+    assert ang == pytest.approx(dg.partition_measure([x], [y], "7t-qd")[0], abs=1e-9)
+
+
+def test_to_diagram_is_invariant():
+    rng = np.random.default_rng(6)
+    xy = random_half_points(50, 7)
+    base = np.stack([np.zeros((50, 2)), np.tile([1.0, 0.0], (50, 1)), xy], axis=1)
+    th = rng.uniform(0, 2 * np.pi)
+    rot = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    moved = 3.7 * base @ rot.T + np.array([5.0, -2.0])
+    moved = moved[:, [2, 0, 1]]
+    mirrored = moved * np.array([-1.0, 1.0])
+    for v in (base, moved, mirrored):
+        assert np.allclose(dg.to_diagram(v), xy, atol=1e-12)
+
+
+def g(r2, u, h):
+    """Antiderivative of sqrt(r2 - u^2) at offset u, with h = sqrt(r2 - u^2) given exactly."""
+    return 0.5 * (u * h + r2 * math.atan2(u, h))
+
+
+def test_arc_areas_closed_forms():
+    half = math.pi / 6 - math.sqrt(3) / 8
+    assert dg.HALF_AREA == pytest.approx(half, abs=1e-15)
+    # II + III: the half disc (x-1/3)^2 + y^2 < 1/9 left of x = 1/2
+    not_i = math.pi / 27 + math.sqrt(3) / 72
+    # III: under (x-6/5)^2+y^2=16/25 from its left end 2/5 to the intersection (6/13, 4/13),
+    # then under (x-1/3)^2+y^2=1/9 to x = 1/2 (height sqrt(3)/6)
+    iii = (g(16 / 25, -48 / 65, 4 / 13) - g(16 / 25, -4 / 5, 0.0)
+           + g(1 / 9, 1 / 6, math.sqrt(3) / 6) - g(1 / 9, 5 / 39, 4 / 13))
+    exact = {"I": half - not_i, "II": not_i - iii, "III": iii}
+    for k, v in exact.items():
+        assert dg.region_area(k).value == pytest.approx(v, abs=1e-14)
+        q = dg.region_area(k, method="quadrature", tol=1e-11)
+        assert abs(q.value - v) <= max(q.error, 1e-12)
+
+
+def test_areas_against_quasi_monte_carlo():
+    # independent oracle: a scrambled-free Halton sequence over the bounding box, membership
+    # by the region masks; standard error ~ sqrt(p(1-p)/n) * box area; 5 sigma
+    n = 40000
+    i = np.arange(1, n + 1)
+
+    def halton(b):
+        out = np.zeros(n)
+        f = 1.0
+        k = i.copy()
+        while (k > 0).any():
+            f /= b
+            out += f * (k % b)
+            k //= b
+        return out
+
+    x, y = 0.5 * halton(2), 0.87 * halton(3)
+    masks = dg.region_masks(x, y, exact=False)
+    box = 0.5 * 0.87
+    for k in ("I", "II", "III", "shaded", "C1", "C2", "C3"):
+        est = masks[k].mean() * box
+        p = masks[k].mean()
+        tol = 5 * math.sqrt(p * (1 - p) / n) * box + 1e-4
+        assert dg.region_area(k, tol=1e-8).value == pytest.approx(est, abs=tol)
+
+
+def test_quadrature_converges():
+    prev = None
+    for tol in (1e-7, 1e-9, 1e-11):
+        r = dg.region_area("C2", tol=tol)
+        assert r.error <= tol
+        if prev is not None:
+            assert abs(r.value - prev.value) <= prev.error + r.error + 1e-12
+        prev = r
+    fine = {k: dg.region_area(k, tol=1e-10, n_samples=128).value for k in ("C1", "C2", "C3")}
+    coarse = {k: dg.region_area(k, tol=1e-10, n_samples=32).value for k in ("C1", "C2", "C3")}
+    for k in fine:
+        assert fine[k] == pytest.approx(coarse[k], abs=1e-9)
+    assert sum(fine.values()) == pytest.approx(dg.region_area("shaded").value, abs=1e-9)
+
+
+def test_angle_measure_total():
+    total = sum(dg.region_area(k, method="quadrature", tol=1e-9, measure="angles").value
+                for k in ("I", "II", "III"))
+    assert total == pytest.approx(dg.HALF_ANGLE_AREA, abs=5e-9)
+
+
+def test_diagram_json(capsys):
+    assert main(["diagram", "--json", "--no-angle-measure"]) == 0
+    obj = json.loads(capsys.readouterr().out)
+    assert {"diagram_area", "fractions", "areas", "le_min_above_qd",
+            "worst_qd_over_d_min_angle", "error_bound"} <= set(obj)
+    keys = {"I", "II", "III", "shaded", "C1", "C2", "C3"}
+    assert set(obj["fractions"]) == keys and set(obj["areas"]) == keys
+    fr = obj["fractions"]
+    assert fr["I"] + fr["II"] + fr["III"] == pytest.approx(1, abs=1e-12)
+    assert fr["C1"] + fr["C2"] + fr["C3"] == pytest.approx(fr["shaded"], abs=1e-8)
+    assert obj["error_bound"] <= 1e-6
+    assert 0 < obj["worst_qd_over_d_min_angle"] < 1
+    assert "paper_claims" in obj
+
+
+def test_bad_options():
+    with pytest.raises(ValueError, match="choose one of"):
+        dg.region_area("IV")
+    with pytest.raises(ValueError, match="choose one of"):
+        dg.partition_measure([0.3], [0.3], "7t-qd", measure="max")
