@@ -4,6 +4,9 @@ The 7T-QD (Seven Triangle Quasi-Delaunay) partition, with 7T-LE, 7T-D and the cl
 four-triangle schemes for comparison. See :func:`refine` and :func:`partition`.
 """
 
+from . import marking
+from .adaptive import refine_cycles
+from .io import read, write
 from .mesh import Mesh
 from .partition import partition, partition_many
 from .refine import refine, refine_with_parents
@@ -13,11 +16,15 @@ __all__ = [
     "Mesh",
     "SCHEMES",
     "get_scheme",
+    "marking",
     "partition",
     "partition_many",
+    "read",
     "refine",
+    "refine_cycles",
     "refine_with_parents",
     "scheme_names",
+    "write",
 ]
 
 __version__ = "0.1.0"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import operator
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .kernels import edge_points, emit, number_edges
 from .mesh import Mesh, edge_ids, index_dtype
@@ -14,7 +14,8 @@ from .schemes import Scheme, get_scheme
 __all__ = ["refine", "refine_with_parents"]
 
 
-def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1) -> Mesh:
+def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
+           marked: ArrayLike | None = None) -> Mesh:
     """Refine every triangle of ``mesh`` ``levels`` times with ``scheme``.
 
     Parameters
@@ -22,6 +23,13 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1) -> Mesh:
     mesh : Mesh
     scheme : {"7t-qd", "7t-le", "7t-d", "4t-le", "4t-red"}
     levels : int, >= 0
+    marked : (M,) bool or (K,) int, optional
+        Refine locally: only these triangles are partitioned by ``scheme``, and a
+        longest-edge closure with transition patterns keeps the mesh conforming (see
+        :mod:`qdrefine.adaptive` and ``docs/adaptive.md``). With ``levels > 1`` the
+        children of the marked triangles are marked again. Everything said below about
+        points, parents and tags holds, with only the split edges getting new points
+        (numbered by their rank among split edges) and tagged edges cut only where split.
 
     Returns
     -------
@@ -38,13 +46,18 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1) -> Mesh:
     >>> fine.n_triangles == examples.plate_with_hole().n_triangles * 49
     True
     """
-    return refine_with_parents(mesh, scheme, levels)[0]
+    return refine_with_parents(mesh, scheme, levels, marked)[0]
 
 
 def refine_with_parents(
-    mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1
+    mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
+    marked: ArrayLike | None = None,
 ) -> tuple[Mesh, NDArray[np.int64]]:
     """:func:`refine`, also returning ``parents (M',) int64``: the input triangle of each child."""
+    if marked is not None:
+        from .adaptive import refine_marked
+
+        return refine_marked(mesh, marked, scheme, levels)
     sch = get_scheme(scheme)
     try:
         levels = operator.index(levels)

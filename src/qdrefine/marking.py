@@ -1,0 +1,139 @@
+"""Marking helpers: which triangles to refine. Each returns a boolean mask ``(M,)``.
+
+Pass the mask as ``marked`` to :func:`qdrefine.refine`.
+
+Examples
+--------
+>>> from qdrefine import examples, refine
+>>> from qdrefine.marking import mark_box
+>>> mesh = examples.square(4)
+>>> fine = refine(mesh, marked=mark_box(mesh, (0.0, 0.0, 0.2, 0.2)))
+>>> fine.n_triangles > mesh.n_triangles
+True
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .adaptive import as_mask
+from .mesh import Mesh
+
+__all__ = ["mark_ids", "mark_mask", "mark_tag", "mark_region", "mark_box", "mark_dorfler",
+           "mark_maximum"]
+
+
+def mark_ids(mesh: Mesh, ids: ArrayLike) -> NDArray[np.bool_]:
+    """Mask of the triangles with indices ``ids (K,) int`` (checked to be in range)."""
+    a = np.asarray(ids)
+    if a.size and a.dtype == bool:
+        raise ValueError("ids must be integers; use mark_mask for a boolean mask")
+    return as_mask(a.astype(np.int64) if a.size == 0 else a, mesh.n_triangles)
+
+
+def mark_mask(mesh: Mesh, mask: ArrayLike) -> NDArray[np.bool_]:
+    """A checked copy of a boolean mask ``(M,)``."""
+    a = np.asarray(mask)
+    if a.dtype != bool:
+        raise ValueError(f"mask must be boolean, got dtype {a.dtype}")
+    return as_mask(a, mesh.n_triangles)
+
+
+def mark_tag(mesh: Mesh, tags: int | ArrayLike) -> NDArray[np.bool_]:
+    """Triangles whose cell tag is ``tags`` (one tag or several)."""
+    if mesh.cell_tags is None:
+        raise ValueError("the mesh has no cell tags")
+    return np.isin(mesh.cell_tags, np.atleast_1d(np.asarray(tags, dtype=np.int64)))
+
+
+def centroids(mesh: Mesh) -> NDArray[np.float64]:
+    """Centroids ``(M, 2)``."""
+    return mesh.points[mesh.triangles].mean(axis=1)
+
+
+def mark_region(mesh: Mesh, inside: Callable[[NDArray[np.float64]], ArrayLike]
+                ) -> NDArray[np.bool_]:
+    """Triangles whose centroid is in a region: ``inside(centroids (M, 2)) -> (M,) bool``.
+
+    Examples
+    --------
+    >>> from qdrefine import examples
+    >>> m = mark_region(examples.square(4), lambda c: c[:, 0] < 0.25)
+    >>> int(m.sum())
+    8
+    """
+    out = np.asarray(inside(centroids(mesh)))
+    if out.shape != (mesh.n_triangles,) or out.dtype != bool:
+        raise ValueError(f"inside(centroids) must return a boolean array of shape "
+                         f"({mesh.n_triangles},), got {out.dtype} {out.shape}")
+    return out.copy()
+
+
+def mark_box(mesh: Mesh, box: ArrayLike) -> NDArray[np.bool_]:
+    """Triangles that intersect (touch or overlap) the closed box ``(x0, y0, x1, y1)``.
+
+    Exact separating-axis test on the float coordinates up to rounding of the projections:
+    the box's two axes and the three edge normals of each triangle.
+    """
+    b = np.asarray(box, dtype=np.float64)
+    if b.shape != (4,) or not np.isfinite(b).all() or b[0] > b[2] or b[1] > b[3]:
+        raise ValueError(f"box must be (x0, y0, x1, y1) with x0 <= x1 and y0 <= y1, got {box}")
+    p = mesh.points[mesh.triangles]  # (M, 3, 2)
+    hit = ((p[..., 0].max(1) >= b[0]) & (p[..., 0].min(1) <= b[2])
+           & (p[..., 1].max(1) >= b[1]) & (p[..., 1].min(1) <= b[3]))
+    corners = np.array([[b[0], b[1]], [b[2], b[1]], [b[2], b[3]], [b[0], b[3]]])
+    for i in range(3):
+        a, c = p[:, i], p[:, (i + 1) % 3]
+        normal = np.stack([c[:, 1] - a[:, 1], a[:, 0] - c[:, 0]], axis=1)  # outward (CCW)
+        # the box is separated iff all four corners lie strictly outside this edge
+        d = np.einsum("mkj,mj->mk", corners[None, :, :] - a[:, None, :], normal)
+        hit &= ~(d > 0).all(axis=1)
+    return hit
+
+
+def mark_dorfler(indicator: ArrayLike, theta: float) -> NDArray[np.bool_]:
+    """Dörfler (bulk) marking: a smallest set of triangles holding a ``theta`` share of the
+    total of a non-negative ``indicator (M,)`` (e.g. squared local error estimates).
+
+    The largest values are taken first (ties by triangle index), until their sum reaches
+    ``theta * sum(indicator)``; ``0 < theta <= 1``.
+
+    Examples
+    --------
+    >>> mark_dorfler([1.0, 5.0, 3.0, 1.0], 0.5).tolist()
+    [False, True, False, False]
+    """
+    eta = _indicator(indicator)
+    if not 0.0 < theta <= 1.0:
+        raise ValueError(f"theta must be in (0, 1], got {theta}")
+    order = np.argsort(-eta, kind="stable")
+    total = eta.sum()
+    mask = np.zeros(eta.shape[0], dtype=bool)
+    if total == 0:
+        return mask
+    csum = np.cumsum(eta[order])
+    count = int(np.searchsorted(csum, theta * total, side="left")) + 1
+    mask[order[: min(count, eta.shape[0])]] = True
+    return mask
+
+
+def mark_maximum(indicator: ArrayLike, theta: float) -> NDArray[np.bool_]:
+    """Maximum strategy: triangles with ``indicator >= theta * max(indicator)``, ``0 < theta
+    <= 1`` (nothing when the indicator is zero everywhere)."""
+    eta = _indicator(indicator)
+    if not 0.0 < theta <= 1.0:
+        raise ValueError(f"theta must be in (0, 1], got {theta}")
+    top = eta.max() if eta.size else 0.0
+    return (eta >= theta * top) & (eta > 0)
+
+
+def _indicator(indicator: ArrayLike) -> NDArray[np.float64]:
+    eta = np.asarray(indicator, dtype=np.float64)
+    if eta.ndim != 1:
+        raise ValueError(f"indicator must be one-dimensional, got shape {eta.shape}")
+    if not np.isfinite(eta).all() or (eta < 0).any():
+        raise ValueError("indicator must be finite and non-negative")
+    return eta

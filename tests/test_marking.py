@@ -1,0 +1,120 @@
+"""Marking helpers."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from meshes import jittered_grid
+from qdrefine import Mesh, examples
+from qdrefine.marking import (
+    mark_box,
+    mark_dorfler,
+    mark_ids,
+    mark_mask,
+    mark_maximum,
+    mark_region,
+    mark_tag,
+)
+
+
+def test_ids_mask_and_tag():
+    mesh = examples.plate_with_hole(8, 2)
+    m = mark_ids(mesh, [0, 5, 5])
+    assert m.dtype == bool and m.shape == (mesh.n_triangles,)
+    assert np.flatnonzero(m).tolist() == [0, 5]
+    assert not mark_ids(mesh, []).any()
+    with pytest.raises(ValueError, match="outside"):
+        mark_ids(mesh, [mesh.n_triangles])
+    with pytest.raises(ValueError, match="mark_mask"):
+        mark_ids(mesh, np.ones(mesh.n_triangles, bool))
+    mask = np.arange(mesh.n_triangles) % 3 == 0
+    np.testing.assert_array_equal(mark_mask(mesh, mask), mask)
+    with pytest.raises(ValueError, match="boolean"):
+        mark_mask(mesh, mask.astype(int))
+    left = mark_tag(mesh, examples.LEFT)
+    np.testing.assert_array_equal(left, mesh.cell_tags == examples.LEFT)
+    assert mark_tag(mesh, [examples.LEFT, examples.RIGHT]).all()
+    with pytest.raises(ValueError, match="no cell tags"):
+        mark_tag(examples.square(2), 1)
+
+
+def test_region_on_centroids():
+    mesh = examples.square(4)
+    m = mark_region(mesh, lambda c: c[:, 0] + c[:, 1] < 0.5)
+    c = mesh.points[mesh.triangles].mean(axis=1)
+    np.testing.assert_array_equal(m, c.sum(axis=1) < 0.5)
+    with pytest.raises(ValueError, match="boolean"):
+        mark_region(mesh, lambda c: c[:, 0])
+
+
+def _box_hits_by_sampling(p, box):
+    """Brute force: dense barycentric samples of the triangle inside the box, or a box
+    corner inside the triangle."""
+    x0, y0, x1, y1 = box
+    w = np.array([(i, j, 60 - i - j) for i in range(61) for j in range(61 - i)]) / 60
+    s = w @ p
+    if ((s[:, 0] >= x0) & (s[:, 0] <= x1) & (s[:, 1] >= y0) & (s[:, 1] <= y1)).any():
+        return True
+    for cx, cy in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):
+        d = [(p[(i + 1) % 3, 0] - p[i, 0]) * (cy - p[i, 1])
+             - (p[(i + 1) % 3, 1] - p[i, 1]) * (cx - p[i, 0]) for i in range(3)]
+        if min(d) >= 0:
+            return True
+    return None  # undecided by sampling: an edge barely crossing a corner
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10**6), x=st.floats(-0.2, 1.0), y=st.floats(-0.2, 1.0),
+       w=st.floats(0.0, 0.5), h=st.floats(0.0, 0.5))
+def test_box_marks_the_triangles_it_meets(seed, x, y, w, h):
+    mesh = jittered_grid(4, seed)
+    box = (x, y, x + w, y + h)
+    m = mark_box(mesh, box)
+    for t in range(mesh.n_triangles):
+        truth = _box_hits_by_sampling(mesh.points[mesh.triangles[t]], box)
+        if truth:
+            assert m[t]
+
+
+def test_box_rejects_a_triangle_whose_bounding_box_overlaps():
+    mesh = Mesh([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], [[0, 1, 2]])
+    assert not mark_box(mesh, (0.8, 0.8, 1.0, 1.0))[0]  # beyond the hypotenuse
+    assert mark_box(mesh, (0.5, 0.5, 1.0, 1.0))[0]  # touches it at (0.5, 0.5)
+    assert mark_box(mesh, (0.1, 0.1, 0.2, 0.2))[0]  # inside
+    assert mark_box(mesh, (-1, -1, 2, 2))[0]  # around
+    assert not mark_box(mesh, (1.1, 0.0, 2.0, 1.0))[0]
+    with pytest.raises(ValueError, match="box"):
+        mark_box(mesh, (1, 0, 0, 1))
+
+
+@settings(max_examples=50, deadline=None)
+@given(eta=st.lists(st.floats(0, 100), min_size=1, max_size=40),
+       theta=st.floats(0.01, 1.0))
+def test_dorfler_is_a_smallest_bulk_of_the_largest(eta, theta):
+    eta = np.array(eta)
+    m = mark_dorfler(eta, theta)
+    total = eta.sum()
+    if total == 0:
+        assert not m.any()
+        return
+    assert eta[m].sum() >= theta * total * (1 - 1e-12)
+    # largest first: every marked value >= every unmarked one
+    if m.any() and (~m).any():
+        assert eta[m].min() >= eta[~m].max()
+    # smallest: dropping the smallest marked value falls short
+    if m.sum() > 1:
+        assert eta[m].sum() - eta[m].min() < theta * total * (1 + 1e-12)
+
+
+def test_maximum_strategy_and_bad_indicators():
+    eta = np.array([0.0, 1.0, 4.0, 3.0, 2.0])
+    assert mark_maximum(eta, 0.5).tolist() == [False, False, True, True, True]
+    assert not mark_maximum(np.zeros(3), 0.5).any()
+    for bad in ([-1.0, 2.0], [np.nan], [[1.0]]):
+        with pytest.raises(ValueError):
+            mark_dorfler(bad, 0.5)
+    with pytest.raises(ValueError, match="theta"):
+        mark_dorfler([1.0], 0.0)
+    with pytest.raises(ValueError, match="theta"):
+        mark_maximum([1.0], 1.5)
