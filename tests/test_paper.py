@@ -1,14 +1,11 @@
 """The paper module: lemma checks, the Qhull search, verdict helpers, figures."""
 
-import importlib.util
 
-import pytest
 
 from qdrefine import diagram as dg
 from qdrefine import paper
 
 
-@pytest.mark.skipif(importlib.util.find_spec("sympy") is None, reason="needs sympy")
 def test_lemmas_hold_and_paper_centre_is_wrong():
     out = paper.lemma_checks()
     assert len(out["results"]) == 24
@@ -18,7 +15,6 @@ def test_lemmas_hold_and_paper_centre_is_wrong():
     assert all(ok for _, ok in out["steps"])
 
 
-@pytest.mark.skipif(importlib.util.find_spec("scipy") is None, reason="needs scipy")
 def test_qhull_failure_is_found_and_degenerate():
     out = paper.find_qhull_failure(trials=200)
     ex = out["example"]
