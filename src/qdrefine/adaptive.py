@@ -28,7 +28,6 @@ See ``docs/adaptive.md`` for the closure's termination and the quality study.
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Callable
 from functools import cache
 
@@ -37,9 +36,10 @@ from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
 from .kernels import CHUNK, canonical, edge_points, emit, number_edges
-from .mesh import Mesh, edge_ids, index_dtype
+from .mesh import Mesh, index_dtype
 from .predicates import SCRATCH
 from .quality import angles
+from .refine import as_count, split_tagged_edges
 from .schemes import Scheme, get_scheme
 
 __all__ = [
@@ -258,12 +258,7 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
         The input triangle of each output triangle.
     """
     sch = get_scheme(scheme)
-    try:
-        levels = operator.index(levels)
-    except TypeError:
-        raise ValueError(f"levels must be an integer, got {levels!r}") from None
-    if levels < 0:
-        raise ValueError(f"levels must be >= 0, got {levels}")
+    levels = as_count(levels, "levels")
     mask = as_mask(marked, mesh.n_triangles)
     if min_angle is None:
         min_angle = KEEP * float(angles(mesh.points, mesh.triangles).min())
@@ -332,8 +327,8 @@ def _refine_marked_once(mesh: Mesh, marked: NDArray[np.bool_], sch: Scheme, min_
     cell_tags = None if mesh.cell_tags is None else mesh.cell_tags[parents]
     new_edges, edge_tags = None, None
     if mesh.edges is not None:
-        new_edges, edge_tags = _split_some_tagged_edges(mesh.edges, mesh.edge_tags, edges,
-                                                        split, rank, n, k)
+        new_edges, edge_tags = split_tagged_edges(mesh.edges, mesh.edge_tags, edges, n, k,
+                                                  split, rank)
         new_edges = new_edges.astype(dtype)
     from_full = np.repeat(code == FULL, n_children)
     out = Mesh._trusted(points, triangles, cell_tags, new_edges, edge_tags)
@@ -413,29 +408,6 @@ def _transition(points: NDArray[np.float64], t: NDArray, labels: NDArray[np.int8
     return np.take_along_axis(ids[:, None, :], local, axis=2)
 
 
-def _split_some_tagged_edges(tagged: NDArray, tags: NDArray, edges: NDArray,
-                             split: NDArray[np.bool_], rank: NDArray[np.int64], n: int,
-                             k: int) -> tuple[NDArray, NDArray]:
-    """Each tagged edge ``(a, b)`` on a split edge becomes ``k + 1`` edges ``a -> ... -> b``
-    with its tag; the others are kept."""
-    ids = edge_ids(edges, tagged, n)
-    a = tagged[:, 0].astype(np.int64)
-    b = tagged[:, 1].astype(np.int64)
-    cut = split[ids]
-    r = rank[ids]
-    forward = a < b
-    chain = [a]
-    for j in range(k):
-        chain.append(np.where(forward, n + r * k + j, n + r * k + (k - 1 - j)))
-    chain.append(b)
-    pieces = np.stack([np.stack([chain[j], chain[j + 1]], axis=1) for j in range(k + 1)],
-                      axis=1)  # (K, k+1, 2)
-    pieces[~cut, 0, 1] = b[~cut]
-    keep = np.ones((tagged.shape[0], k + 1), dtype=bool)
-    keep[~cut, 1:] = False
-    return pieces[keep], np.repeat(tags, keep.sum(axis=1))
-
-
 def refine_cycles(mesh: Mesh, mark: Callable[[Mesh], ArrayLike], cycles: int,
                   scheme: str | Scheme = "7t-qd", keep: float = KEEP
                   ) -> tuple[Mesh, NDArray[np.int64]]:
@@ -460,12 +432,7 @@ def refine_cycles(mesh: Mesh, mark: Callable[[Mesh], ArrayLike], cycles: int,
     parents : (M',) int64
         The triangle of the input mesh each output triangle lies in.
     """
-    try:
-        cycles = operator.index(cycles)
-    except TypeError:
-        raise ValueError(f"cycles must be an integer, got {cycles!r}") from None
-    if cycles < 0:
-        raise ValueError(f"cycles must be >= 0, got {cycles}")
+    cycles = as_count(cycles, "cycles")
     floor = keep * float(angles(mesh.points, mesh.triangles).min())
     parents = np.arange(mesh.n_triangles, dtype=np.int64)
     out = mesh

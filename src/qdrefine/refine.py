@@ -11,7 +11,7 @@ from .kernels import edge_points, emit, number_edges
 from .mesh import Mesh, edge_ids, index_dtype
 from .schemes import Scheme, get_scheme
 
-__all__ = ["refine", "refine_with_parents"]
+__all__ = ["refine", "refine_with_parents", "as_count", "split_tagged_edges"]
 
 
 def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
@@ -59,17 +59,23 @@ def refine_with_parents(
 
         return refine_marked(mesh, marked, scheme, levels)
     sch = get_scheme(scheme)
-    try:
-        levels = operator.index(levels)
-    except TypeError:
-        raise ValueError(f"levels must be an integer, got {levels!r}") from None
-    if levels < 0:
-        raise ValueError(f"levels must be >= 0, got {levels}")
+    levels = as_count(levels, "levels")
     out = mesh
     for _ in range(levels):
         out = _refine_once(out, sch)
     parents = np.arange(out.n_triangles, dtype=np.int64) // sch.n_children**levels
     return out, parents
+
+
+def as_count(value: object, name: str) -> int:
+    """``value`` as a non-negative integer; ``ValueError`` naming ``name`` otherwise."""
+    try:
+        count = operator.index(value)
+    except TypeError:
+        raise ValueError(f"{name} must be an integer, got {value!r}") from None
+    if count < 0:
+        raise ValueError(f"{name} must be >= 0, got {count}")
+    return count
 
 
 def _refine_once(mesh: Mesh, sch: Scheme) -> Mesh:
@@ -85,21 +91,35 @@ def _refine_once(mesh: Mesh, sch: Scheme) -> Mesh:
     cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
     new_edges, edge_tags = None, None
     if mesh.edges is not None:
-        new_edges, edge_tags = _split_tagged_edges(mesh.edges, mesh.edge_tags, edges, n, k)
+        new_edges, edge_tags = split_tagged_edges(mesh.edges, mesh.edge_tags, edges, n, k)
         new_edges = new_edges.astype(triangles.dtype)
     return Mesh._trusted(points, triangles, cell_tags, new_edges, edge_tags)
 
 
-def _split_tagged_edges(tagged: NDArray, tags: NDArray, edges: NDArray, n: int,
-                        k: int) -> tuple[NDArray, NDArray]:
-    """Each tagged edge ``(a, b)`` becomes ``k + 1`` edges ``a -> ... -> b``, same tag."""
+def split_tagged_edges(tagged: NDArray, tags: NDArray, edges: NDArray, n: int, k: int,
+                       split: NDArray[np.bool_] | None = None,
+                       rank: NDArray[np.int64] | None = None) -> tuple[NDArray, NDArray]:
+    """Each tagged edge ``(a, b)`` that is split becomes ``k + 1`` edges ``a -> ... -> b``
+    with its tag; the others are kept.
+
+    ``split (E,)`` says which mesh edges get new points (default: all) and ``rank (E,)``
+    numbers them (default: the edge id): the points of edge ``g`` are ``n + rank[g] k + j``.
+    """
     ids = edge_ids(edges, tagged, n)
     a = tagged[:, 0].astype(np.int64)
     b = tagged[:, 1].astype(np.int64)
+    r = ids if rank is None else rank[ids]
     forward = a < b
     chain = [a]
     for j in range(k):
-        chain.append(np.where(forward, n + ids * k + j, n + ids * k + (k - 1 - j)))
+        chain.append(np.where(forward, n + r * k + j, n + r * k + (k - 1 - j)))
     chain.append(b)
-    pieces = np.stack([np.stack([chain[j], chain[j + 1]], axis=1) for j in range(k + 1)], axis=1)
-    return pieces.reshape(-1, 2), np.repeat(tags, k + 1)
+    pieces = np.stack([np.stack([chain[j], chain[j + 1]], axis=1) for j in range(k + 1)],
+                      axis=1)  # (K, k+1, 2)
+    if split is None:
+        return pieces.reshape(-1, 2), np.repeat(tags, k + 1)
+    cut = split[ids]
+    pieces[~cut, 0, 1] = b[~cut]
+    keep = np.ones((tagged.shape[0], k + 1), dtype=bool)
+    keep[~cut, 1:] = False
+    return pieces[keep], np.repeat(tags, keep.sum(axis=1))

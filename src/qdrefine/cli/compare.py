@@ -7,7 +7,7 @@ import argparse
 from .. import report
 from ..io import read
 from ..quality import SIMILARITY_TOLERANCE
-from ..schemes import scheme_names
+from ..schemes import get_scheme, scheme_names
 from . import _common
 
 HELP = "refine with several schemes level by level: min angle, mean, similarity classes"
@@ -35,10 +35,8 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     with _common.session():
         schemes = args.schemes or scheme_names()
-        unknown = [s for s in schemes if s not in scheme_names()]
-        if unknown:
-            raise ValueError(f"unknown scheme {unknown[0]!r}; choose from "
-                             f"{', '.join(scheme_names())}")
+        for name in schemes:
+            get_scheme(name)  # an unknown name fails here, before any file is read
         if args.plot:
             _common.check_output(args.plot, (args.input,), kinds="picture")
         mesh = read(args.input)

@@ -7,7 +7,7 @@ import time
 
 from ..io import read, write
 from ..refine import refine
-from ..schemes import scheme_names
+from ..schemes import get_scheme, scheme_names
 from . import _common
 
 HELP = "refine every triangle of a mesh file with a seven-triangle (or 4T) scheme"
@@ -34,9 +34,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     with _common.session():
-        if args.scheme not in scheme_names():
-            raise ValueError(f"unknown scheme {args.scheme!r}; choose one of "
-                             f"{', '.join(scheme_names())}")
+        get_scheme(args.scheme)  # an unknown name fails here, before any file is read
         _common.check_output(args.output, (args.input,), binary=args.binary)
         start = time.perf_counter()
         with _common.Progress(args.levels + 2, args.quiet) as progress:
