@@ -254,7 +254,7 @@ def test_triangle_write_replaces_a_stale_poly(tmp_path):
 
 BAD_TRIANGLE = {
     "bad number": (".node", NODE.replace("2 1 0 1", "2 1 x 1"), "sq.node:4: expected numbers"),
-    "truncated": (".node", "\n".join(NODE.splitlines()[:4]), "sq.node:4: file ends early"),
+    "truncated": (".node", "\n".join(NODE.splitlines()[:4]), "sq.node:2: file ends early"),
     "dimension": (".node", NODE.replace("5 2 0 1", "5 3 0 1"), "sq.node:2: dimension must be 2"),
     "numbering": (".node", NODE.replace("4 0 1 1", "7 0 1 1"), "sq.node:6: expected vertex 4"),
     "out of range": (".ele", ELE.replace("1 1 2 5 7", "1 1 2 6 7"),
@@ -263,9 +263,9 @@ BAD_TRIANGLE = {
                         "sq.ele:2: the regional attribute 7.5"),
     "no triangles": (".ele", "0 3 0\n", "sq.ele: holds no triangles"),
     "segment": (".poly", POLY.replace("1 1 2 3", "1 1 3 3"),
-                "sq.poly:3: segment \\(1, 3\\) is not an edge"),
+                "sq.poly:3: edge 0 \\(1, 3\\) is not an edge"),
     "zero area": (".node", NODE.replace("5 0.5 0.5 0", "5 0.5 0 0"),
-                  "sq.ele: triangle 0 .* has zero area"),
+                  "sq.ele:2: triangle 1 \\(1, 2, 5\\) has zero area"),
 }
 
 
@@ -280,3 +280,18 @@ def test_bad_triangle_files_name_file_and_line(tmp_path, problem):
         qdrefine.read(tmp_path / "sq.ele")
     with pytest.raises(FileNotFoundError, match="other.node: no such file"):
         qdrefine.read(tmp_path / "other.ele")
+
+
+def test_check_file_lists_every_problem_with_its_line(tmp_path):
+    """A Triangle file with a duplicate point (line of the first) and unused points."""
+    (tmp_path / "b.node").write_text(NODE.replace("5 0.5 0.5 0", "5 0.5 0.5 0\n6 1 1 0\n7 9 9 0")
+                                     .replace("5 2 0 1", "7 2 0 1"))
+    (tmp_path / "b.ele").write_text("3 3 0\n1 1 2 5\n2 2 3 5\n3 6 4 5  # 6 is vertex 3 again\n")
+    _, found = io.check_file(tmp_path / "b.ele")
+    got = {p.kind: (p.message, p.count) for p in found.problems}
+    assert got["duplicate-points"][0] == f"{tmp_path / 'b.node'}:5: points 3 and 6 are both at " \
+                                         "(1.0, 1.0)"
+    assert got["unused-points"] == (f"{tmp_path / 'b.ele'}: 1 of 7 points are used by no "
+                                    "triangle (first: point 7); they are kept", 1)
+    with pytest.raises(ValueError, match="b.node:5: points 3 and 6"):
+        qdrefine.read(tmp_path / "b.ele")

@@ -1,9 +1,14 @@
-"""Mesh construction and validation."""
+"""Mesh construction and validation: messages, and every check against an oracle."""
+
+from collections import Counter
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from qdrefine import Mesh, examples
+from oracle import exact, orient
+from qdrefine import Mesh, check, examples
 
 SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 TRIS = np.array([[0, 1, 2], [0, 2, 3]])
@@ -47,3 +52,105 @@ def test_examples_are_valid():
     assert set(np.unique(mesh.edge_tags)) == {examples.OUTER, examples.HOLE}
     assert set(np.unique(mesh.cell_tags)) == {examples.LEFT, examples.RIGHT}
     assert examples.square(3).n_triangles == 18
+
+
+# every check against a brute-force oracle in rational arithmetic ---------------------------
+
+def oracle_counts(p: np.ndarray, t: np.ndarray) -> dict[str, int]:
+    """Instances of each error kind, by definition (Fractions, dictionaries, all pairs);
+    clockwise triangles are flipped first, as the readers do."""
+    q = [exact(x) for x in p]
+    signs = [orient(q[a], q[b], q[c]) for a, b, c in t]
+    tris = [(a, c, b) if s < 0 else (a, b, c) for (a, b, c), s in zip(t.tolist(), signs,
+                                                                       strict=True)]
+    out = {"zero-area": sum(s == 0 for s in signs), "clockwise": sum(s < 0 for s in signs)}
+    used = sorted({v for tri in tris for v in tri})
+    out["duplicate-points"] = len(used) - len({q[v] for v in used})
+    sides = [(tri[i], tri[(i + 1) % 3]) for tri in tris for i in range(3)]
+    undirected = Counter(frozenset(s) for s in sides)
+    out["overused-edge"] = sum(c > 2 for c in undirected.values())
+    directed = Counter(sides)
+    out["folded-edge"] = 0 if out["zero-area"] else sum(
+        1 for e, c in undirected.items() if c == 2 and len(e) == 2
+        and max(directed[tuple(sorted(e))], directed[tuple(sorted(e))[::-1]]) == 2)
+    boundary = [s for s in sides if undirected[frozenset(s)] == 1]
+    verts = {v for s in boundary for v in s}
+    out["hanging-node"] = sum(
+        1 for a, b in boundary for v in verts
+        if v not in (a, b) and q[v] not in (q[a], q[b]) and orient(q[a], q[b], q[v]) == 0
+        and min(q[a], q[b]) <= q[v] <= max(q[a], q[b]))
+    return {k: v for k, v in out.items() if v}
+
+
+@st.composite
+def lattice_meshes(draw):
+    """Few points on a small lattice (many collinear and equal points), random triangles."""
+    n = draw(st.integers(3, 9))
+    p = np.array(draw(st.lists(st.tuples(st.integers(0, 3), st.integers(0, 3)), min_size=n,
+                               max_size=n)), dtype=float) * draw(st.sampled_from([1.0, 0.1]))
+    t = np.array(draw(st.lists(st.tuples(*[st.integers(0, n - 1)] * 3), min_size=1,
+                               max_size=8)), dtype=np.int64)
+    return p, t
+
+
+@settings(max_examples=200, deadline=None)
+@given(lattice_meshes())
+def test_checks_agree_with_the_oracle(mesh):
+    p, t = mesh
+    found = check.find(p, t, flip_clockwise=True)
+    got = {x.kind: x.count for x in found.problems if x.kind in (
+        "zero-area", "clockwise", "duplicate-points", "overused-edge", "folded-edge",
+        "hanging-node")}
+    assert got == oracle_counts(p, t)
+    refused = check.find(p, t, stop_at_error=True, warnings=False).errors
+    try:
+        Mesh(p, t)
+    except ValueError as exc:
+        assert str(exc) == refused[0].message
+    else:
+        assert not refused and not oracle_counts(p, t)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(2, 40), st.integers(0, 2**32 - 1))
+def test_hanging_node_search_matches_all_pairs(n, seed):
+    """The k-d tree search against all pairs, on segments of a lattice (many collinear)."""
+    rng = np.random.default_rng(seed)
+    points = rng.integers(0, 6, size=(n, 2)).astype(float)
+    points = np.unique(points, axis=0)
+    k = len(points)
+    edges = rng.integers(0, k, size=(2 * k, 2))
+    edges = edges[edges[:, 0] != edges[:, 1]]
+    count, hits = check.hanging_nodes(points, edges)
+    q = [exact(x) for x in points]
+    verts = set(edges.ravel().tolist())
+    expected = {(v, r) for r, (a, b) in enumerate(edges.tolist()) for v in verts
+                if v not in (a, b) and orient(q[a], q[b], q[v]) == 0
+                and min(q[a], q[b]) < q[v] < max(q[a], q[b])}
+    assert count == len(expected)
+    assert {tuple(h) for h in hits.tolist()} <= expected
+
+
+def test_messages_name_where():
+    sq = SQUARE.tolist()
+    cases = [
+        (sq + [[1.0, 1.0]], [[0, 1, 2], [0, 4, 3]], r"points 2 and 4 are both at \(1.0, 1.0\)"),
+        (sq + [[2.0, 0.5]], [[0, 1, 2], [0, 2, 3], [0, 4, 2]],
+         r"edge \(0, 2\) is shared by 3 triangles \(0, 1, 2\)"),
+        (sq + [[2.0, 0.5]], [[0, 1, 2], [0, 4, 2]],
+         r"triangles 0 and 1 lie on the same side of their common edge \(0, 2\)"),
+        ([[0, 0], [2, 0], [1, 1], [1, 0], [1, -1]], [[0, 1, 2], [0, 4, 3], [3, 4, 1]],
+         r"vertex 3 lies inside edge \(0, 1\) of triangle 0"),
+    ]
+    for points, tris, message in cases:
+        with pytest.raises(ValueError, match=message):
+            Mesh(points, tris)
+
+
+def test_unused_points_are_allowed_and_kept():
+    points = np.vstack([SQUARE, [[0.5, 0.5], [1.0, 1.0]]])  # an unused copy of point 2 too
+    mesh = Mesh(points, TRIS)
+    assert mesh.n_points == 6
+    found = check.find(points, TRIS)
+    assert found.ok and [p.kind for p in found.problems] == ["unused-points"]
+    assert found.problems[0].count == 2

@@ -44,17 +44,17 @@ import os
 import tempfile
 import warnings
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .kernels import number_edges
-from .mesh import Mesh, edge_ids
-from .predicates import check_coordinates, orient_signs
+from .check import MIN_ANGLE, Checked, Problem, find
+from .mesh import Mesh
 
-__all__ = ["read", "write", "FORMATS", "Format", "atomic_path"]
+__all__ = ["read", "read_raw", "check_file", "write", "FORMATS", "Format", "RawMesh",
+           "atomic_path"]
 
 PathLike = str | os.PathLike
 
@@ -111,10 +111,11 @@ def _check_readable(path: Path) -> None:
 
 @contextlib.contextmanager
 def _quiet_meshio(path: Path) -> Iterator[None]:
-    """Silence meshio's Python warnings and turn what it prints on stderr into one
-    :class:`UserWarning` naming ``path``."""
+    """Silence meshio's Python warnings and turn what it prints on stderr or stdout into
+    one :class:`UserWarning` naming ``path``."""
     buffer = io_module.StringIO()
-    with warnings.catch_warnings(), contextlib.redirect_stderr(buffer):
+    with warnings.catch_warnings(), contextlib.redirect_stderr(buffer), \
+            contextlib.redirect_stdout(buffer):
         warnings.simplefilter("ignore")
         yield
     text = " ".join(buffer.getvalue().split())  # only reached on success
@@ -141,15 +142,103 @@ def read(path: PathLike) -> Mesh:
     -------
     Mesh
         Points ``(N, 2)`` (z dropped when every z is 0), counter-clockwise triangles
-        ``(M, 3)``, ``cell_tags (M,)`` and tagged ``edges (K, 2)`` where the file has them.
+        ``(M, 3)`` (clockwise ones flipped, with a warning), ``cell_tags (M,)`` and tagged
+        ``edges (K, 2)`` where the file has them.
 
     Raises
     ------
     OSError
         The file is missing or unreadable.
     ValueError
-        Unknown extension, or the content is not a valid flat triangle mesh; the message
-        names the file (and the line, for Triangle files).
+        Unknown extension, a corrupt file, or content that is not a valid flat triangle
+        mesh (any error of :data:`qdrefine.check.KINDS`); the message starts with the file
+        name (and the line, for Triangle files) and names the first problem.
+    """
+    raw = read_raw(path)
+    for problem in raw.problems:
+        if problem.severity == "error":
+            raise ValueError(problem.message)
+    found = find(raw.points, raw.triangles, raw.cell_tags, raw.edges, raw.edge_tags,
+                 flip_clockwise=True, stop_at_error=True, warnings=False, base=raw.base)
+    problems = [raw.locate(p) for p in found.problems]
+    for problem in problems:
+        if problem.severity == "error":
+            raise ValueError(problem.message)
+        if problem.kind == "clockwise":
+            warnings.warn(problem.message, stacklevel=2)
+    return Mesh._trusted(found.points, found.triangles, found.cell_tags, found.edges,
+                         found.edge_tags)
+
+
+def check_file(path: PathLike, min_angle: float = MIN_ANGLE) -> tuple[RawMesh, Checked]:
+    """Every problem of a mesh file (:func:`qdrefine.check.find` on what the file holds).
+
+    Raises ``OSError`` / ``ValueError`` only when the file cannot be read at all (missing,
+    unknown format, corrupt); content problems are returned, each message starting with the
+    file name (and line), as :func:`read` would raise them.
+    """
+    raw = read_raw(path)
+    found = find(raw.points, raw.triangles, raw.cell_tags, raw.edges, raw.edge_tags,
+                 flip_clockwise=True, min_angle=min_angle, geometry=raw.flat, base=raw.base)
+    seen = {p.kind for p in raw.problems}
+    found.problems[:] = raw.problems + [raw.locate(p) for p in found.problems
+                                        if p.kind not in seen]
+    return raw, found
+
+
+@dataclass
+class RawMesh:
+    """What a mesh file holds, before any check: ``points (N, 2) float64`` (z dropped),
+    ``triangles (M, 3) int64`` (0-based), optional tags; the problems the reader itself
+    found (non-flat points, other cell types, bad tags), whether the points are flat, the
+    number of the first point and triangle in the file, and for Triangle files the line of
+    each point, triangle and tagged edge (``lines[kind] = (file, (K,) line numbers)``)."""
+
+    path: Path
+    points: NDArray[np.float64]
+    triangles: NDArray[np.int64]
+    cell_tags: NDArray | None = None
+    edges: NDArray | None = None
+    edge_tags: NDArray | None = None
+    problems: list[Problem] = field(default_factory=list)
+    flat: bool = True
+    base: int = 0
+    lines: dict[str, tuple[Path, NDArray]] = field(default_factory=dict)
+
+    def problem(self, kind: str, message: str, count: int = 1, **where) -> None:
+        """Record a problem found while reading (message prefixed with the file name)."""
+        self.problems.append(self.locate(Problem(kind, message, count, where)))
+
+    def locate(self, problem: Problem) -> Problem:
+        """``problem`` with the file name (and line, for errors in Triangle files) in front
+        of its message and in ``where``."""
+        file, line = self._line(problem.where) if problem.severity == "error" else (
+            self.path, None)
+        where = {**problem.where, "file": str(file)} | ({"line": line} if line else {})
+        message = problem.message
+        if not message.startswith(str(file)):
+            message = (f"{file}:{line}: " if line else f"{file}: ") + message
+        return Problem(problem.kind, message, problem.count, where, problem.severity)
+
+    def _line(self, where: dict) -> tuple[Path, int | None]:
+        """The file and line of the first triangle, tagged edge or point named by ``where``."""
+        for key, kind in (("triangle", "triangle"), ("triangles", "triangle"),
+                          ("edge_row", "edge"), ("vertex", "point"), ("point", "point"),
+                          ("points", "point")):
+            if key in where and kind in self.lines:
+                ident = where[key][0] if isinstance(where[key], list) else where[key]
+                row = ident - (0 if kind == "edge" else self.base)
+                file, numbers = self.lines[kind]
+                if 0 <= row < len(numbers):
+                    return file, int(numbers[row])
+        return self.path, None
+
+
+def read_raw(path: PathLike) -> RawMesh:
+    """The content of a mesh file without checking it as a mesh (see :func:`check_file`).
+
+    Raises ``OSError`` (missing, unreadable) or ``ValueError`` (unknown format, corrupt or
+    truncated file) with the file name first.
     """
     path = Path(path)
     fmt = _format_of(path)
@@ -164,103 +253,110 @@ def read(path: PathLike) -> Mesh:
     except OSError as exc:
         raise OSError(f"{path}: {exc.strerror or exc}") from None
     except (Exception, SystemExit) as exc:  # meshio raises many kinds (even exits)
-        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        if isinstance(exc, SystemExit) or not detail:
-            detail = type(exc).__name__ if not isinstance(exc, SystemExit) else "unreadable"
-        raise ValueError(f"{path}: not a readable {fmt.name} file ({detail})") from None
-    return _from_meshio(m, path)
+        raise _unreadable(path, fmt, exc) from None
+    try:
+        points, blocks, tags = _meshio_arrays(m)
+    except (TypeError, ValueError, IndexError, KeyError, AttributeError) as exc:
+        raise _unreadable(path, fmt, exc) from None  # meshio returned malformed data
+    return _from_meshio(path, points, blocks, tags)
 
 
-def _from_meshio(m, path: Path) -> Mesh:
+def _unreadable(path: Path, fmt: Format, exc: BaseException) -> ValueError:
+    text = str(exc).strip()
+    detail = text.splitlines()[0] if text else ""
+    if isinstance(exc, SystemExit):
+        detail = "unreadable"
+    elif not detail:
+        detail = type(exc).__name__
+    return ValueError(f"{path}: not a readable {fmt.name} file ({detail[:200]})")
+
+
+def _meshio_arrays(m) -> tuple[NDArray, list[tuple[str, NDArray]], list[NDArray | None]]:
+    """Points ``(N, d) float64``, cell blocks ``(type, (k, nodes) int)`` and their tags,
+    converted from meshio's objects (malformed data raises here)."""
     points = np.asarray(m.points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] not in (2, 3):
-        raise ValueError(f"{path}: points must have 2 or 3 coordinates, got shape "
-                         f"{points.shape}")
+        raise ValueError(f"points must have 2 or 3 coordinates, got shape {points.shape}")
     key = next((k for k in _TAG_KEYS if k in m.cell_data), None)
-    tris, tri_tags, lines, line_tags = [], [], [], []
-    others: dict[str, int] = {}
+    blocks, tags = [], []
     for i, block in enumerate(m.cells):
         data = np.asarray(block.data)
-        tags = None if key is None else np.asarray(m.cell_data[key][i]).reshape(-1)
-        if block.type == "triangle":
+        if block.type in ("triangle", "line"):
+            width = 3 if block.type == "triangle" else 2
+            if data.ndim != 2 or data.shape[1] != width or \
+                    (data.size and not np.issubdtype(data.dtype, np.integer)):
+                raise ValueError(f"malformed {block.type} cells")
+            data = data.astype(np.int64)
+        blocks.append((block.type, data))
+        tags.append(None if key is None else np.asarray(m.cell_data[key][i]).reshape(-1))
+        if tags[-1] is not None and len(tags[-1]) != len(data):
+            raise ValueError(f"{len(tags[-1])} tags for {len(data)} {block.type} cells")
+    return points, blocks, tags
+
+
+def _from_meshio(path: Path, points: NDArray, blocks: list, tags: list) -> RawMesh:
+    tris, tri_tags, lines, line_tags = [], [], [], []
+    others: dict[str, int] = {}
+    for (kind, data), tag in zip(blocks, tags, strict=True):
+        if kind == "triangle":
             tris.append(data)
-            tri_tags.append(tags)
-        elif block.type == "line":
-            if tags is not None:
+            tri_tags.append(tag)
+        elif kind == "line":
+            if tag is not None:
                 lines.append(data)
-                line_tags.append(tags)
-        elif block.type != "vertex":
-            others[block.type] = others.get(block.type, 0) + len(data)
+                line_tags.append(tag)
+        elif kind != "vertex":
+            others[kind] = others.get(kind, 0) + len(data)
+    raw = RawMesh(path, np.empty((0, 2)), np.empty((0, 3), dtype=np.int64))
+    _flat_points(raw, points)
     if others:
         what = ", ".join(f"{n} {t}" for t, n in others.items())
-        raise ValueError(f"{path}: holds {what} cells; qdrefine reads linear triangles "
-                         "(with line and vertex cells) only")
-    if not tris or sum(len(t) for t in tris) == 0:
-        raise ValueError(f"{path}: holds no triangles")
-    triangles = np.concatenate(tris)
-    cell_tags = None
+        raw.problem("cell-types", f"holds {what} cells; qdrefine reads linear triangles "
+                    "(with line and vertex cells) only", sum(others.values()))
+    if sum(len(t) for t in tris) == 0:
+        raw.problem("no-triangles", "holds no triangles", 0)
+        return raw
+    raw.triangles = np.concatenate(tris)
     if all(t is not None for t in tri_tags):
-        cell_tags = _integer_tags(np.concatenate(tri_tags), path)
-        if not cell_tags.any():
-            cell_tags = None
-    edges = edge_tags = None
+        raw.cell_tags = _integer_tags(raw, np.concatenate(tri_tags), "cell")
+        if raw.cell_tags is not None and not raw.cell_tags.any():
+            raw.cell_tags = None
     if lines:
         edges = np.concatenate(lines)
-        edge_tags = _integer_tags(np.concatenate(line_tags), path)
-        keep = edge_tags != 0
-        edges, edge_tags = edges[keep], edge_tags[keep]
-        if len(edges) == 0:
-            edges = edge_tags = None
-    return _build(path, points, triangles, cell_tags, edges, edge_tags)
+        edge_tags = _integer_tags(raw, np.concatenate(line_tags), "edge")
+        if edge_tags is not None and (edge_tags != 0).any():
+            raw.edges, raw.edge_tags = edges[edge_tags != 0], edge_tags[edge_tags != 0]
+    return raw
 
 
-def _integer_tags(tags: NDArray, path: Path) -> NDArray[np.int64]:
+def _integer_tags(raw: RawMesh, tags: NDArray, what: str) -> NDArray[np.int64] | None:
     t = np.asarray(tags)
-    if not np.issubdtype(t.dtype, np.integer):
-        as_int = np.round(t).astype(np.int64) if np.isfinite(t).all() else None
-        if as_int is None or (as_int != t).any():
-            raise ValueError(f"{path}: tags must be integers")
-        t = as_int
-    return t.astype(np.int64)
+    if np.issubdtype(t.dtype, np.integer):
+        return t.astype(np.int64)
+    try:
+        values = t.astype(np.float64)
+    except (TypeError, ValueError):
+        values = np.array([np.nan])
+    ok = np.isfinite(values) & (np.abs(values) < 2.0**62)
+    if ok.all() and (np.round(values) == values).all():
+        return values.astype(np.int64)
+    raw.problem(f"{what}-tags", f"{what} tags must be integers")
+    return None
 
 
-def _flat_points(path: Path, points: NDArray) -> NDArray:
+def _flat_points(raw: RawMesh, points: NDArray) -> None:
+    """Store ``points`` as 2D; a problem (and no geometric checks) unless every z is 0."""
     if points.shape[1] == 3:
         z = points[:, 2]
         bad = z != 0
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise ValueError(f"{path}: the mesh is not flat: {int(bad.sum())} of "
-                             f"{len(points)} points have z != 0 (first: point {i}, z = "
-                             f"{z[i]!r}); qdrefine reads 2D meshes, or 3D ones with z = 0")
+            raw.flat = False
+            raw.problem("not-flat", f"the mesh is not flat: {int(bad.sum())} of {len(points)} "
+                        f"points have z != 0 (first: point {i}, z = {z[i]!r}); qdrefine reads "
+                        "2D meshes, or 3D ones with z = 0", int(bad.sum()), point=i)
         points = points[:, :2]
-    return np.ascontiguousarray(points)
-
-
-def _build(path: Path, points: NDArray, triangles: NDArray, cell_tags, edges,
-           edge_tags) -> Mesh:
-    """A validated Mesh; clockwise triangles are flipped with a warning."""
-    points = _flat_points(path, points)
-    try:
-        check_coordinates(points)
-        t = np.asarray(triangles)
-        if t.size and np.issubdtype(t.dtype, np.integer) and t.ndim == 2 and t.shape[1] == 3:
-            n = len(points)
-            out = (t < 0) | (t >= n)
-            if out.any():
-                i = int(np.flatnonzero(out.any(axis=1))[0])
-                raise ValueError(f"triangle {i} {tuple(int(v) for v in t[i])} has a vertex "
-                                 f"index outside 0..{n - 1}")
-            signs = orient_signs(points, np.ascontiguousarray(t, dtype=np.int64))
-            cw = signs < 0
-            if cw.any():
-                t = t.copy()
-                t[cw] = t[cw][:, ::-1]
-                warnings.warn(f"{path}: {int(cw.sum())} of {len(t)} triangles were clockwise "
-                              "and have been flipped", stacklevel=3)
-        return Mesh(points, t, cell_tags, edges, edge_tags)
-    except ValueError as exc:
-        raise ValueError(f"{path}: {exc}") from None
+    raw.points = np.ascontiguousarray(points, dtype=np.float64)
 
 
 # --------------------------------------------------------------------------------------------
@@ -398,6 +494,8 @@ class _Lines:
             text = path.read_text(encoding="utf-8")
         except UnicodeDecodeError:
             raise ValueError(f"{path}: not a text file") from None
+        except OSError as exc:
+            raise OSError(f"{path}: {exc.strerror or exc}") from None
         self.rows: list[tuple[int, list[str]]] = []
         for number, line in enumerate(text.splitlines(), start=1):
             words = line.split("#", 1)[0].split()
@@ -421,10 +519,13 @@ class _Lines:
 
     def ints(self, line: int, words: list[str], what: str) -> list[int]:
         try:
-            return [int(w) for w in words]
+            values = [int(w) for w in words]
         except ValueError:
             raise self.error(f"expected integers in {what}, got {' '.join(words)!r}",
                              line) from None
+        if any(abs(v) >= 2**62 for v in values):
+            raise self.error(f"integer too large in {what}: {' '.join(words)!r}", line)
+        return values
 
     def floats(self, line: int, words: list[str], what: str) -> list[float]:
         try:
@@ -439,6 +540,9 @@ class _Lines:
         values += list(defaults[len(values):])
         if values[0] < 0:
             raise self.error(f"negative count {values[0]} in the {what} header", line)
+        if values[0] > len(self.rows) - self.pos:
+            raise self.error(f"file ends early: the header announces {values[0]} {what} "
+                             f"lines, {len(self.rows) - self.pos} follow", line)
         return values
 
     def numbering(self, line: int, index: int, row: int, base: int | None, what: str) -> int:
@@ -455,70 +559,76 @@ def _triangle_base(path: Path) -> Path:
     return path.with_suffix("")
 
 
-def _read_triangle(path: Path) -> Mesh:
+def _read_triangle(path: Path) -> RawMesh:
     base = _triangle_base(path)
     node_path, ele_path, poly_path = (base.with_suffix(s) for s in (".node", ".ele", ".poly"))
-    nodes = _Lines(node_path)
+    points, first, node_lines = _read_node(_Lines(node_path))
+    raw = RawMesh(ele_path, points, np.empty((0, 3), dtype=np.int64), base=first)
+    raw.lines["point"] = (node_path, node_lines)
+    _read_ele(_Lines(ele_path), raw, node_path)
+    if poly_path.exists() and not any(p.kind == "no-triangles" for p in raw.problems):
+        _read_poly(_Lines(poly_path), raw)
+    return raw
+
+
+def _read_node(nodes: _Lines) -> tuple[NDArray, int, NDArray]:
     n, dim, n_attr, n_mark = nodes.header("vertex", 4, (0, 2, 0, 0))
     if dim != 2:
         raise nodes.error(f"dimension must be 2, got {dim}", nodes.rows[0][0])
     points = np.empty((n, 2))
+    lines = np.empty(n, dtype=np.int64)
     first = None
     for i in range(n):
         line, words = nodes.next(f"vertex {i + 1} of {n}", 3)
         idx = nodes.ints(line, words[:1], "the vertex number")[0]
         first = nodes.numbering(line, idx, i, first, "vertex")
         points[i] = nodes.floats(line, words[1:3], "the coordinates")
-    first = 0 if first is None else first
+        lines[i] = line
+    return points, 0 if first is None else first, lines
 
-    eles = _Lines(ele_path)
+
+def _read_ele(eles: _Lines, raw: RawMesh, node_path: Path) -> None:
     m, per, n_tattr = eles.header("triangle", 3, (0, 3, 0))
     if per not in (3, 6):
         raise eles.error(f"nodes per triangle must be 3 or 6, got {per}", eles.rows[0][0])
     triangles = np.empty((m, 3), dtype=np.int64)
     tags = np.empty(m, dtype=np.int64) if n_tattr > 0 else None
+    lines = np.empty(m, dtype=np.int64)
     tri_first = None
     for i in range(m):
         line, words = eles.next(f"triangle {i + 1} of {m}", 1 + per + n_tattr)
         idx = eles.ints(line, words[:1], "the triangle number")[0]
         tri_first = eles.numbering(line, idx, i, tri_first, "triangle")
-        corners = eles.ints(line, words[1:4], "the triangle's vertices")
-        for v in corners:
-            if not first <= v < first + n:
-                raise eles.error(f"vertex {v} is not in {node_path.name} (vertices "
-                                 f"{first}..{first + n - 1})", line)
-        triangles[i] = corners
+        triangles[i] = eles.ints(line, words[1:4], "the triangle's vertices")
+        lines[i] = line
         if tags is not None:
             attr = eles.floats(line, words[1 + per:2 + per], "the regional attribute")[0]
-            if not np.isfinite(attr) or attr != int(attr):
+            if not np.isfinite(attr) or attr != int(attr) or abs(attr) >= 2**62:
                 raise eles.error(f"the regional attribute {words[1 + per]} is not an integer "
                                  "tag", line)
             tags[i] = int(attr)
     if m == 0:
-        raise eles.error("holds no triangles")
-    triangles -= first
-    if tags is not None and not tags.any():
-        tags = None
-
-    edges = edge_tags = None
-    if poly_path.exists():
-        edges, edge_tags = _read_poly(poly_path, points, first)
-    mesh = _build(ele_path, points, triangles, tags, None, None)
-    if edges is None:
-        return mesh
-    e, _, _ = number_edges(mesh.triangles, mesh.n_points)
-    missing = edge_ids(e, edges[:, :2], mesh.n_points) < 0
-    if missing.any():
-        i = int(np.flatnonzero(missing)[0])
-        a, b = (int(v) + first for v in edges[i, :2])
-        raise ValueError(f"{poly_path}:{int(edges[i, 2])}: segment ({a}, {b}) is not an edge of "
-                         f"any triangle of {ele_path.name}")
-    return Mesh(mesh.points, mesh.triangles, mesh.cell_tags, edges[:, :2], edge_tags)
+        raw.problem("no-triangles", "holds no triangles", 0)
+        return
+    if tri_first is not None and tri_first != raw.base:
+        raise eles.error(f"triangles are numbered from {tri_first} but the vertices of "
+                         f"{node_path.name} from {raw.base}", eles.rows[1][0])
+    raw.lines["triangle"] = (eles.path, lines)
+    n, first = len(raw.points), raw.base
+    bad = ((triangles < first) | (triangles >= first + n)).any(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        v = next(int(v) for v in triangles[i] if not first <= v < first + n)
+        raw.problem("index-range", f"vertex {v} is not in {node_path.name} (vertices "
+                    f"{first}..{first + n - 1})", int(bad.sum()), triangle=i + first,
+                    vertices=triangles[i].tolist())
+    raw.triangles = triangles - first
+    raw.cell_tags = tags if tags is not None and tags.any() else None
 
 
-def _read_poly(path: Path, points: NDArray, first: int) -> tuple[NDArray | None, NDArray | None]:
-    """Marked segments ``(K, 3)`` (a, b, line number) and their markers, 0-based indices."""
-    poly = _Lines(path)
+def _read_poly(poly: _Lines, raw: RawMesh) -> None:
+    """Marked segments become the tagged edges of ``raw``; the lines are kept."""
+    points, first = raw.points, raw.base
     n_pts, dim, n_attr, n_mark = poly.header("vertex", 4, (0, 2, 0, 0))
     for i in range(n_pts):
         line, words = poly.next(f"vertex {i + 1} of {n_pts}", 3)
@@ -530,17 +640,14 @@ def _read_poly(path: Path, points: NDArray, first: int) -> tuple[NDArray | None,
     for i in range(k):
         line, words = poly.next(f"segment {i + 1} of {k}", 3 + (k_mark > 0))
         values = poly.ints(line, words[:3 + (k_mark > 0)], "the segment")
-        a, b = values[1] - first, values[2] - first
-        for v in (a, b):
-            if not 0 <= v < len(points):
-                raise poly.error(f"vertex {v + first} is not in the .node file", line)
         marker = values[3] if k_mark > 0 else 0
         if marker != 0:
-            rows.append((a, b, line, marker))
+            rows.append((values[1] - first, values[2] - first, line, marker))
     if not rows:
-        return None, None
+        return
     data = np.array(rows, dtype=np.int64)
-    return data[:, :3], data[:, 3]
+    raw.lines["edge"] = (poly.path, data[:, 2])
+    raw.edges, raw.edge_tags = data[:, :2], data[:, 3]
 
 
 def _write_triangle(path: Path, mesh: Mesh) -> None:

@@ -8,29 +8,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .kernels import number_edges
-from .predicates import check_coordinates, orient_signs
+from .check import find, index_dtype
 
-__all__ = ["Mesh", "index_dtype"]
-
-def index_dtype(n_points: int) -> type[np.integer]:
-    """``int32`` while vertex indices fit, ``int64`` beyond."""
-    return np.int32 if n_points <= np.iinfo(np.int32).max else np.int64
+__all__ = ["Mesh", "edge_ids", "index_dtype"]
 
 
 def _readonly(a: NDArray | None) -> NDArray | None:
     if a is not None:
         a.flags.writeable = False
     return a
-
-
-def _integer_array(value: ArrayLike, name: str) -> NDArray[np.int64]:
-    a = np.asarray(value)
-    if a.size == 0:
-        return a.astype(np.int64)
-    if not np.issubdtype(a.dtype, np.integer):
-        raise ValueError(f"{name} must hold integers, got dtype {a.dtype}")
-    return a.astype(np.int64, copy=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,9 +38,13 @@ class Mesh:
     edge_tags : (K,) int64, optional
         One tag per row of ``edges``; given together with ``edges``.
 
-    Construction validates everything once and raises ``ValueError`` naming the first
-    offending triangle or edge; the arrays are copied and made read-only. Functions of
-    qdrefine return new meshes and never change one.
+    Construction validates everything once with :func:`qdrefine.check.find` and raises
+    ``ValueError`` naming the first problem and where (triangle, vertex or edge ids): shapes,
+    non-finite or out-of-range coordinates, indices, zero-area or clockwise triangles, two
+    used points at the same coordinates, an edge shared by more than two triangles, two
+    triangles folded onto one side of their edge, hanging nodes, tags. Unused points are
+    allowed (kept). The arrays are copied and made read-only. Functions of qdrefine return
+    new meshes and never change one.
     """
 
     points: NDArray[np.float64]
@@ -100,62 +90,11 @@ class Mesh:
 
 def _validated(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | None,
                edges: ArrayLike | None, edge_tags: ArrayLike | None) -> dict[str, NDArray | None]:
-    p = np.array(points, dtype=np.float64, copy=True)
-    if p.ndim != 2 or p.shape[1] != 2:
-        raise ValueError(f"points must have shape (N, 2), got {p.shape}")
-    check_coordinates(p)
-    n = p.shape[0]
-    t = _integer_array(triangles, "triangles")
-    if t.ndim != 2 or t.shape[1] != 3:
-        raise ValueError(f"triangles must have shape (M, 3), got {t.shape}")
-    if t.shape[0] == 0:
-        raise ValueError("the mesh has no triangles")
-    out = (t < 0) | (t >= n)
-    if out.any():
-        i = int(np.flatnonzero(out.any(axis=1))[0])
-        raise ValueError(f"triangle {i} {tuple(int(v) for v in t[i])} has a vertex index "
-                         f"outside 0..{n - 1}")
-    t = np.ascontiguousarray(t, dtype=index_dtype(n))
-    signs = orient_signs(p, t)
-    if (signs <= 0).any():
-        i = int(np.flatnonzero(signs <= 0)[0])
-        what = "has zero area" if signs[i] == 0 else "is clockwise"
-        raise ValueError(f"triangle {i} {tuple(int(v) for v in t[i])} {what}; triangles must "
-                         "be counter-clockwise with positive area")
-    ct = None
-    if cell_tags is not None:
-        ct = _integer_array(cell_tags, "cell_tags").copy()
-        if ct.shape != (t.shape[0],):
-            raise ValueError(f"cell_tags must have shape ({t.shape[0]},), got {ct.shape}")
-    e, et = _validated_edges(t, n, edges, edge_tags)
-    return {"points": p, "triangles": t, "cell_tags": ct, "edges": e, "edge_tags": et}
-
-
-def _validated_edges(t: NDArray, n: int, edges: ArrayLike | None,
-                     edge_tags: ArrayLike | None) -> tuple[NDArray | None, NDArray | None]:
-    if edges is None and edge_tags is None:
-        return None, None
-    if edges is None or edge_tags is None:
-        raise ValueError("edges and edge_tags must be given together")
-    e = _integer_array(edges, "edges")
-    if e.size == 0:
-        e = e.reshape(0, 2)
-    if e.ndim != 2 or e.shape[1] != 2:
-        raise ValueError(f"edges must have shape (K, 2), got {e.shape}")
-    et = _integer_array(edge_tags, "edge_tags").copy()
-    if et.shape != (e.shape[0],):
-        raise ValueError(f"edge_tags must have shape ({e.shape[0]},), got {et.shape}")
-    out = (e < 0) | (e >= n)
-    if out.any():
-        i = int(np.flatnonzero(out.any(axis=1))[0])
-        raise ValueError(f"edge {i} {tuple(int(v) for v in e[i])} has a vertex index outside "
-                         f"0..{n - 1}")
-    e = np.ascontiguousarray(e, dtype=t.dtype)
-    missing = edge_ids(number_edges(t, n)[0], e, n) < 0
-    if missing.any():
-        i = int(np.flatnonzero(missing)[0])
-        raise ValueError(f"edge {i} {tuple(int(v) for v in e[i])} is not an edge of any triangle")
-    return e, et
+    found = find(points, triangles, cell_tags, edges, edge_tags, stop_at_error=True,
+                 warnings=False)
+    found.raise_first()
+    return {"points": found.points, "triangles": found.triangles, "cell_tags": found.cell_tags,
+            "edges": found.edges, "edge_tags": found.edge_tags}
 
 
 def edge_ids(mesh_edges: NDArray, query: NDArray, n: int) -> NDArray[np.int64]:

@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .kernels import edge_points, emit, number_edges
+from .memory import check_memory
 from .mesh import Mesh, edge_ids, index_dtype
 from .schemes import Scheme, get_scheme
 
@@ -30,6 +31,12 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
         children of the marked triangles are marked again. Everything said below about
         points, parents and tags holds, with only the split edges getting new points
         (numbered by their rank among split edges) and tagged edges cut only where split.
+
+    Raises
+    ------
+    MemoryError
+        Before allocating anything, when the output and work arrays would need more memory
+        than is available (:func:`check_memory`).
 
     Returns
     -------
@@ -60,6 +67,7 @@ def refine_with_parents(
         return refine_marked(mesh, marked, scheme, levels)
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
+    check_memory(mesh, sch, levels)
     out = mesh
     for _ in range(levels):
         out = _refine_once(out, sch)

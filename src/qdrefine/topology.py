@@ -5,12 +5,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from .check import duplicate_pairs, edge_scan, hanging_nodes
 from .kernels import number_edges
 from .mesh import Mesh
-from .predicates import SCRATCH, orient_sign
 
 __all__ = ["Conformity", "unique_edges", "boundary_edges", "conformity", "euler_characteristic"]
 
@@ -44,7 +43,7 @@ class Conformity:
     overused_edges: int  # edges shared by more than two triangles
     misoriented_edges: int  # interior edges walked the same way by both triangles
     hanging_nodes: int  # vertices inside a boundary edge (a non-conforming joint)
-    duplicate_points: int  # points with identical coordinates
+    duplicate_points: int  # used points with the coordinates of an earlier used point
 
     @property
     def ok(self) -> bool:
@@ -56,67 +55,15 @@ def conformity(mesh: Mesh) -> Conformity:
     """Check that ``mesh`` is a conforming, consistently oriented triangulation.
 
     Every interior edge must be shared by exactly two triangles walking it in opposite
-    directions, and no vertex may lie inside another triangle's edge: a hanging node always
-    sits inside an edge used by one triangle only, so the boundary edges are tested against
-    every vertex with the exact orientation predicate (vertices are bucketed on a grid, so
-    the cost is about linear for well-spread meshes).
+    directions, no two used points may coincide, and no vertex may lie inside a boundary
+    edge (where a hanging node always sits when triangles do not overlap; exact test, see
+    :func:`qdrefine.check.hanging_nodes`). The same kernels validate every :class:`Mesh`;
+    this function also checks meshes built without validation (refinement output).
     """
     edges, tri_edges, counts = unique_edges(mesh)
-    tri = mesh.triangles
-    forward = tri < np.roll(tri, -1, axis=1)
-    n_forward = np.bincount(tri_edges[forward], minlength=len(edges))
-    twice = counts == 2
-    misoriented = int(np.count_nonzero(twice & (n_forward != 1)))
-    b = boundary_edges(mesh)
-    hanging = int(_hanging_nodes(mesh.points, b.astype(np.int64)))
-    dup = mesh.n_points - np.unique(mesh.points, axis=0).shape[0]
-    return Conformity(int(np.count_nonzero(counts > 2)), misoriented, hanging, int(dup))
-
-
-@njit(cache=True)
-def _hanging_nodes(points, bedges):
-    """Number of (vertex, boundary edge) pairs with the vertex strictly inside the edge."""
-    n = points.shape[0]
-    if bedges.shape[0] == 0 or n == 0:
-        return 0
-    x0, y0 = points[:, 0].min(), points[:, 1].min()
-    x1, y1 = points[:, 0].max(), points[:, 1].max()
-    g = max(1, int(np.sqrt(n)))
-    sx = (x1 - x0) / g if x1 > x0 else 1.0
-    sy = (y1 - y0) / g if y1 > y0 else 1.0
-    cell = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        cx = min(g - 1, int((points[i, 0] - x0) / sx))
-        cy = min(g - 1, int((points[i, 1] - y0) / sy))
-        cell[i] = cx * g + cy
-    order = np.argsort(cell)
-    start = np.zeros(g * g + 1, dtype=np.int64)
-    for i in range(n):
-        start[cell[i] + 1] += 1
-    for c in range(g * g):
-        start[c + 1] += start[c]
-    buf = np.empty(SCRATCH)
-    found = 0
-    for e in range(bedges.shape[0]):
-        a, b = bedges[e, 0], bedges[e, 1]
-        ax, ay, bx, by = points[a, 0], points[a, 1], points[b, 0], points[b, 1]
-        cx0 = max(0, min(g - 1, int((min(ax, bx) - x0) / sx)) - 1)
-        cx1 = min(g - 1, int((max(ax, bx) - x0) / sx) + 1)
-        cy0 = max(0, min(g - 1, int((min(ay, by) - y0) / sy)) - 1)
-        cy1 = min(g - 1, int((max(ay, by) - y0) / sy) + 1)
-        for cx in range(cx0, cx1 + 1):
-            for cy in range(cy0, cy1 + 1):
-                c = cx * g + cy
-                for p in range(start[c], start[c + 1]):
-                    v = order[p]
-                    if v == a or v == b:
-                        continue
-                    px, py = points[v, 0], points[v, 1]
-                    if px < min(ax, bx) or px > max(ax, bx) or py < min(ay, by) \
-                            or py > max(ay, by):
-                        continue
-                    if orient_sign(ax, ay, bx, by, px, py, buf) != 0:
-                        continue
-                    if (px, py) != (ax, ay) and (px, py) != (bx, by):
-                        found += 1
-    return found
+    n_over, _, n_fold, _, bedges, _ = edge_scan(mesh.triangles, tri_edges, counts)
+    hanging, _ = hanging_nodes(mesh.points, bedges)
+    used = np.zeros(mesh.n_points, dtype=bool)
+    used[mesh.triangles.ravel()] = True
+    dup, _ = duplicate_pairs(mesh.points, np.flatnonzero(used), 1)
+    return Conformity(int(n_over), int(n_fold), int(hanging), int(dup))

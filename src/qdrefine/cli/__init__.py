@@ -1,9 +1,10 @@
 """The ``qdrefine`` command line: one module per subcommand.
 
 Each subcommand module defines ``HELP`` (one line), ``add_args(parser)`` and
-``run(args) -> int``. Errors that users can cause (bad arguments, bad files, bad meshes)
-are raised as ``ValueError`` or ``OSError`` and printed as one line
-``qdrefine: error: ...`` with exit code 1; no traceback.
+``run(args) -> int``. Errors that users can cause (bad arguments, bad files, bad meshes,
+a mesh too large for the memory) are raised as ``ValueError``, ``OSError`` or
+``MemoryError`` and printed as one line ``qdrefine: error: ...`` with exit code 1; no
+traceback.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ __all__ = ["main", "COMMANDS"]
 
 #: Subcommands in the order ``--help`` lists them (module ``qdrefine.cli.<name>``).
 COMMANDS: tuple[str, ...] = (
-    "refine", "info", "quality", "plot", "compare", "demo", "diagram", "paper",
+    "refine", "check", "info", "quality", "plot", "compare", "demo", "diagram", "paper",
 )
 
 
@@ -47,9 +48,14 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # e.g. `qdrefine info x.msh | head`: not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    except (ValueError, OSError) as exc:
-        print(f"qdrefine: error: {exc}", file=sys.stderr)
+    except (ValueError, OSError, MemoryError) as exc:
+        print(f"qdrefine: error: {_one_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("qdrefine: interrupted", file=sys.stderr)
         return 130
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__

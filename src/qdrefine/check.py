@@ -1,0 +1,682 @@
+"""Every check a triangle mesh can fail, on raw arrays: one place for :class:`~qdrefine.Mesh`,
+the readers of :mod:`qdrefine.io` and ``qdrefine check``.
+
+:func:`find` returns *all* problems of ``points (N, 2)`` and ``triangles (M, 3)`` (with the
+optional tags), each a :class:`Problem` naming its kind, how many instances there are and
+where the first one is. ``Mesh`` calls it with ``stop_at_error=True`` and raises the first
+error as ``ValueError``; ``qdrefine check`` prints the whole list. :data:`KINDS` lists every
+kind with its severity: an ``"error"`` makes the mesh unusable (``Mesh`` refuses it), a
+``"warning"`` does not, a ``"note"`` says that a check was skipped.
+
+Examples
+--------
+>>> from qdrefine import check
+>>> found = check.find([[0, 0], [1, 0], [0, 1], [0, 1]], [[0, 1, 2], [1, 3, 2]])
+>>> [p.kind for p in found.errors]
+['zero-area', 'duplicate-points']
+>>> found.errors[1].message
+'points 2 and 3 are both at (0.0, 1.0)'
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import ArrayLike, NDArray
+
+from .kernels import number_edges
+from .predicates import COORDINATE_RANGE, SCRATCH, orient_sign, orient_signs
+
+__all__ = ["KINDS", "MIN_ANGLE", "Checked", "Problem", "duplicate_pairs", "edge_scan", "find",
+           "hanging_nodes", "index_dtype"]
+
+#: Every kind of problem: its severity and what it means (the guide's table).
+KINDS: dict[str, tuple[str, str]] = {
+    "cell-types": ("error", "the file holds cells other than triangles, lines and vertices "
+                            "(quads, tetrahedra, quadratic elements: refused)"),
+    "not-flat": ("error", "3D points with some z != 0"),
+    "points": ("error", "points are not an (N, 2) array of numbers"),
+    "triangles": ("error", "triangles are not an (M, 3) array of integers"),
+    "no-triangles": ("error", "the mesh has no triangles"),
+    "non-finite": ("error", "a coordinate is NaN or infinite"),
+    "coordinate-range": ("error", "a nonzero coordinate is outside [1e-100, 1e100] in "
+                                  "magnitude (exact predicates)"),
+    "index-range": ("error", "a triangle uses a vertex index that is not a point"),
+    "zero-area": ("error", "a triangle has zero area (collinear or repeated corners)"),
+    "clockwise": ("error", "a triangle is clockwise (readers flip it and warn instead)"),
+    "duplicate-points": ("error", "two points used by triangles have identical coordinates"),
+    "overused-edge": ("error", "an edge is shared by more than two triangles"),
+    "folded-edge": ("error", "two triangles lie on the same side of their common edge "
+                             "(they overlap)"),
+    "hanging-node": ("error", "a vertex lies inside a boundary edge of another triangle "
+                              "(non-conforming input)"),
+    "cell-tags": ("error", "cell_tags is not one integer per triangle"),
+    "edge-tags": ("error", "tagged edges are not (K, 2) vertex indices with one integer tag "
+                           "each"),
+    "edge-not-in-mesh": ("error", "a tagged edge is not an edge of any triangle"),
+    "unused-points": ("warning", "points used by no triangle (kept, carried through "
+                                 "refinement)"),
+    "pinched-vertex": ("warning", "a vertex where separate fans of triangles touch"),
+    "small-angle": ("warning", "triangles with a smallest angle below the threshold"),
+    "skipped": ("note", "checks that could not run because of an earlier error"),
+}
+
+#: Default threshold (degrees) of the ``small-angle`` warning.
+MIN_ANGLE = 5.0
+
+_LEAF = 8  # points per leaf of the k-d tree of boundary vertices
+_CAP = 64  # instances kept per kind by the compiled searches (all are counted)
+
+
+def index_dtype(n_points: int) -> type[np.integer]:
+    """``int32`` while vertex indices fit, ``int64`` beyond."""
+    return np.int32 if n_points <= np.iinfo(np.int32).max else np.int64
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One kind of problem found in a mesh.
+
+    ``message`` names the first instance (e.g. ``"points 3 and 17 are both at (0.5, 0.25)"``),
+    ``count`` the number of instances, ``where`` the ids of the first instance (JSON-ready;
+    numbered as in the message), ``severity`` is ``KINDS[kind][0]`` unless said otherwise.
+    """
+
+    kind: str
+    message: str
+    count: int = 1
+    where: dict[str, Any] = field(default_factory=dict)
+    severity: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.severity:
+            object.__setattr__(self, "severity", KINDS[self.kind][0])
+
+    def to_json(self) -> dict[str, Any]:
+        return {"kind": self.kind, "severity": self.severity, "count": self.count,
+                "message": self.message, "where": self.where}
+
+
+@dataclass
+class Checked:
+    """What :func:`find` found, and the normalized arrays: ``points (N, 2) float64`` (a copy),
+    ``triangles (M, 3)`` of :func:`index_dtype` (clockwise rows flipped when asked), tags as
+    ``int64``; arrays are ``None`` where they could not be normalized."""
+
+    problems: list[Problem]
+    points: NDArray[np.float64] | None = None
+    triangles: NDArray[np.integer] | None = None
+    cell_tags: NDArray[np.int64] | None = None
+    edges: NDArray[np.integer] | None = None
+    edge_tags: NDArray[np.int64] | None = None
+    summary: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def errors(self) -> list[Problem]:
+        return [p for p in self.problems if p.severity == "error"]
+
+    @property
+    def ok(self) -> bool:
+        """True when nothing makes the mesh unusable."""
+        return not self.errors
+
+    def raise_first(self, prefix: str = "") -> None:
+        """Raise ``ValueError(prefix + message)`` of the first error, if any."""
+        if self.errors:
+            raise ValueError(prefix + self.errors[0].message)
+
+
+class _Stop(Exception):
+    """Raised inside :func:`find` at the first error when ``stop_at_error``."""
+
+
+class _Found:
+    def __init__(self, stop: bool, base: int) -> None:
+        self.problems: list[Problem] = []
+        self.stop = stop
+        self.base = base
+
+    def add(self, kind: str, message: str, count: int = 1, severity: str = "",
+            **where: Any) -> None:
+        problem = Problem(kind, message, int(count), where, severity)
+        self.problems.append(problem)
+        if self.stop and problem.severity == "error":
+            raise _Stop
+
+    def skip(self, what: str, because: str) -> None:
+        self.add("skipped", f"{what} not checked: {because}", severity="note")
+
+    def ids(self, values: ArrayLike) -> list[int]:
+        return [int(v) + self.base for v in np.ravel(values)]
+
+
+def find(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | None = None,
+         edges: ArrayLike | None = None, edge_tags: ArrayLike | None = None, *,
+         flip_clockwise: bool = False, stop_at_error: bool = False, warnings: bool = True,
+         min_angle: float = MIN_ANGLE, geometry: bool = True, base: int = 0) -> Checked:
+    """All problems of a mesh given as arrays.
+
+    Parameters
+    ----------
+    points : (N, 2) float
+    triangles : (M, 3) int
+    cell_tags : (M,) int, optional
+    edges : (K, 2) int, optional
+        Tagged edges, given together with ``edge_tags (K,) int``.
+    flip_clockwise : bool
+        Flip clockwise triangles (a warning) instead of refusing them (an error); the
+        readers do this.
+    stop_at_error : bool
+        Return at the first error (what :class:`~qdrefine.Mesh` needs).
+    warnings : bool
+        Also look for warnings (unused points, pinched vertices, small angles).
+    min_angle : float
+        Threshold of the ``small-angle`` warning, degrees.
+    geometry : bool
+        False skips every check that uses coordinates (e.g. for non-flat input).
+    base : int
+        Number of the first point and triangle in messages (files numbered from 1).
+
+    Returns
+    -------
+    Checked
+        Problems in the order checked (shape, coordinates, indices, orientation, topology,
+        tags, warnings) and the normalized arrays.
+    """
+    found = _Found(stop_at_error, base)
+    out = Checked(found.problems)
+    try:
+        _run(found, out, points, triangles, cell_tags, edges, edge_tags, flip_clockwise,
+             warnings, min_angle, geometry)
+    except _Stop:
+        pass
+    return out
+
+
+def _run(found: _Found, out: Checked, points, triangles, cell_tags, edges, edge_tags,
+         flip: bool, warnings: bool, min_angle: float, geometry: bool) -> None:
+    p = _points(found, points)
+    t = _triangles(found, triangles)
+    if p is None or t is None:
+        return
+    out.points = p
+    n = len(p)
+    if not _in_range(found, t, n):
+        return found.skip("orientation, topology and tags", "vertex indices out of range")
+    t = out.triangles = np.array(t, dtype=index_dtype(n), order="C")
+    geometry = geometry and _coordinates(found, p)
+    if not geometry:
+        found.skip("orientation, duplicate points, hanging nodes and angles",
+                   "no valid flat coordinates")
+    oriented = geometry and _orientation(found, p, t, flip)
+    e, tri_edges, counts = number_edges(t, n)
+    scan = edge_scan(t, tri_edges, counts)
+    used = np.zeros(n, dtype=bool)
+    used[t.ravel()] = True
+    if not found.stop:
+        out.summary = _summary(t, used, e, scan[4])
+    _overused(found, t, tri_edges, counts, e, scan)
+    if oriented:
+        _folded(found, t, tri_edges, e, scan)
+    if geometry:
+        _duplicates(found, p, used)
+        _hanging(found, p, scan[4], scan[5])
+    out.cell_tags = _cell_tags(found, cell_tags, len(t))
+    out.edges, out.edge_tags = _tagged_edges(found, edges, edge_tags, e, n, t.dtype)
+    if warnings:
+        _unused(found, used)
+        if oriented:
+            _pinched(found, scan[4])
+        if geometry:
+            _small_angles(found, p, t, min_angle)
+
+
+# shapes, coordinates, indices ---------------------------------------------------------------
+
+
+def _points(found: _Found, points: ArrayLike) -> NDArray | None:
+    try:
+        p = np.array(points, dtype=np.float64, copy=True)
+    except (TypeError, ValueError) as exc:
+        found.add("points", f"points must be an (N, 2) array of numbers ({exc})")
+        return None
+    if p.ndim != 2 or p.shape[1] != 2:
+        found.add("points", f"points must have shape (N, 2), got {p.shape}")
+        return None
+    return p
+
+
+def _triangles(found: _Found, triangles: ArrayLike) -> NDArray | None:
+    try:
+        t = np.asarray(triangles)
+    except (TypeError, ValueError) as exc:
+        found.add("triangles", f"triangles must be an (M, 3) array of integers ({exc})")
+        return None
+    if t.size and not np.issubdtype(t.dtype, np.integer):
+        found.add("triangles", f"triangles must hold integers, got dtype {t.dtype}")
+        return None
+    if t.size == 0 and t.ndim <= 2 and (t.ndim < 2 or t.shape[1] in (0, 3)):
+        found.add("no-triangles", "the mesh has no triangles", 0)
+        return None
+    if t.ndim != 2 or t.shape[1] != 3:
+        found.add("triangles", f"triangles must have shape (M, 3), got {t.shape}")
+        return None
+    return t
+
+
+def _in_range(found: _Found, t: NDArray, n: int) -> bool:
+    if n and t.min() >= 0 and t.max() < n:
+        return True
+    bad = ((t < 0) | (t >= n)).any(axis=1)
+    if not bad.any():
+        return True
+    i = int(np.flatnonzero(bad)[0])
+    b = found.base
+    found.add("index-range", f"triangle {i + b} {tuple(found.ids(t[i]))} has a vertex index "
+              f"outside {b}..{n - 1 + b}", np.count_nonzero(bad), triangle=i + b,
+              vertices=found.ids(t[i]))
+    return False
+
+
+def _coordinates(found: _Found, p: NDArray) -> bool:
+    lo, hi = COORDINATE_RANGE
+    a = np.abs(p)
+    if len(p) == 0 or (a.max() <= hi and np.where(a == 0, hi, a).min() >= lo):
+        return True  # also False for NaN: max() of an array with NaN is NaN
+    ok = True
+    bad = ~np.isfinite(p).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        found.add("non-finite", f"point {i + found.base} has a non-finite coordinate "
+                  f"{tuple(p[i].tolist())}", np.count_nonzero(bad), point=i + found.base)
+        ok = False
+    a = np.abs(np.where(np.isfinite(p), p, 0.0))
+    bad = ((a > hi) | ((a < lo) & (a != 0))).any(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        found.add("coordinate-range",
+                  f"point {i + found.base} has a coordinate {tuple(p[i].tolist())} outside "
+                  f"the supported range: each coordinate must be 0 or between {lo:g} and "
+                  f"{hi:g} in magnitude (exact predicates; rescale the mesh or round tiny "
+                  "values to 0)", np.count_nonzero(bad), point=i + found.base)
+        ok = False
+    return ok
+
+
+def _orientation(found: _Found, p: NDArray, t: NDArray, flip: bool) -> bool:
+    """Zero-area and clockwise triangles; flips the clockwise rows of ``t`` when ``flip``.
+    True when every triangle is (now) counter-clockwise."""
+    signs = orient_signs(p, t)
+    zero = signs == 0
+    if zero.any():
+        i = int(np.flatnonzero(zero)[0])
+        found.add("zero-area", f"triangle {i + found.base} {tuple(found.ids(t[i]))} has zero "
+                  "area", np.count_nonzero(zero), triangle=i + found.base,
+                  vertices=found.ids(t[i]))
+    cw = signs < 0
+    if cw.any():
+        i = int(np.flatnonzero(cw)[0])
+        k = int(np.count_nonzero(cw))
+        where = {"triangle": i + found.base, "vertices": found.ids(t[i])}
+        if flip:
+            found.add("clockwise", f"{k} of {len(t)} triangles were clockwise and have been "
+                      "flipped", k, "warning", **where)
+            t[cw] = t[cw][:, ::-1]
+        else:
+            found.add("clockwise", f"triangle {i + found.base} {tuple(found.ids(t[i]))} is "
+                      "clockwise; triangles must be counter-clockwise with positive area", k,
+                      **where)
+    return not zero.any() and (flip or not cw.any())
+
+
+# topology -------------------------------------------------------------------------------
+
+
+def _summary(t: NDArray, used: NDArray, e: NDArray, bedges: NDArray) -> dict[str, Any]:
+    n_used = int(np.count_nonzero(used))
+    return {"points": len(used), "used_points": n_used, "triangles": len(t), "edges": len(e),
+            "boundary_edges": len(bedges), "euler_characteristic": n_used - len(e) + len(t)}
+
+
+def _edge_triangles(tri_edges: NDArray, edge: int) -> list[int]:
+    return np.flatnonzero((tri_edges == edge).any(axis=1)).tolist()
+
+
+@njit(cache=True)
+def edge_scan(t, tri_edges, counts):
+    """One pass over the triangles' sides: the number of edges used more than twice and the
+    first one, of edges walked the same way by both of their two triangles and the first one,
+    and the boundary edges ``(B, 2)`` as oriented in their triangle ``(B,)``."""
+    ne = counts.shape[0]
+    n_boundary = 0
+    for g in range(ne):
+        if counts[g] == 1:
+            n_boundary += 1
+    bedges = np.empty((n_boundary, 2), dtype=np.int64)
+    btris = np.empty(n_boundary, dtype=np.int64)
+    forward = np.zeros(ne, dtype=np.int8)
+    b = 0
+    for k in range(t.shape[0]):
+        for i in range(3):
+            g = tri_edges[k, i]
+            u, v = t[k, i], t[k, (i + 1) % 3]
+            if u < v:
+                forward[g] = min(forward[g] + 1, 3)
+            if counts[g] == 1:
+                bedges[b, 0], bedges[b, 1] = u, v
+                btris[b] = k
+                b += 1
+    n_over = n_fold = 0
+    first_over = first_fold = -1
+    for g in range(ne):
+        if counts[g] > 2:
+            n_over += 1
+            if first_over < 0:
+                first_over = g
+        elif counts[g] == 2 and forward[g] != 1:
+            n_fold += 1
+            if first_fold < 0:
+                first_fold = g
+    return n_over, first_over, n_fold, first_fold, bedges, btris
+
+
+def _overused(found: _Found, t, tri_edges, counts, e, scan) -> None:
+    n_over, g = scan[0], scan[1]
+    if n_over:
+        tris = [i + found.base for i in _edge_triangles(tri_edges, g)]
+        found.add("overused-edge", f"edge {tuple(found.ids(e[g]))} is shared by "
+                  f"{int(counts[g])} triangles {tuple(tris)}; at most two may share an edge",
+                  n_over, edge=found.ids(e[g]), triangles=tris)
+
+
+def _folded(found: _Found, t, tri_edges, e, scan) -> None:
+    n_fold, g = scan[2], scan[3]
+    if n_fold:
+        tris = [i + found.base for i in _edge_triangles(tri_edges, g)]
+        found.add("folded-edge", f"triangles {tris[0]} and {tris[1]} lie on the same side of "
+                  f"their common edge {tuple(found.ids(e[g]))}: they overlap",
+                  n_fold, edge=found.ids(e[g]), triangles=tris)
+
+
+def _duplicates(found: _Found, p: NDArray, used: NDArray) -> None:
+    count, pairs = duplicate_pairs(p, np.flatnonzero(used), _CAP)
+    if count:
+        a, b = (int(v) for v in pairs[np.lexsort(pairs[:, ::-1].T)[0]])
+        xy = tuple(p[a].tolist())
+        found.add("duplicate-points", f"points {a + found.base} and {b + found.base} are both "
+                  f"at {xy}", count, points=[a + found.base, b + found.base], at=list(xy))
+
+
+@njit(cache=True)
+def duplicate_pairs(p, ids, cap):
+    """Number of points ``p[ids]`` equal to one before them, and up to ``cap`` pairs
+    ``(earlier, later)``: the points are bucketed on a grid (a counting sort), each bucket is
+    compared pairwise when small and sorted when large, ``O(N log N)`` at worst."""
+    k = ids.shape[0]
+    pairs = np.empty((cap, 2), dtype=np.int64)
+    if k < 2:
+        return 0, pairs[:0]
+    x, y = p[ids, 0], p[ids, 1]
+    x0, x1, y0, y1 = x.min(), x.max(), y.min(), y.max()
+    g = max(1, int(np.sqrt(k)))
+    sx = (x1 - x0) / g if x1 > x0 else 1.0
+    sy = (y1 - y0) / g if y1 > y0 else 1.0
+    cell = np.empty(k, dtype=np.int64)
+    start = np.zeros(g * g + 1, dtype=np.int64)
+    for i in range(k):
+        cell[i] = min(g - 1, int((x[i] - x0) / sx)) * g + min(g - 1, int((y[i] - y0) / sy))
+        start[cell[i] + 1] += 1
+    for c in range(g * g):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(k, dtype=np.int64)
+    for i in range(k):
+        order[fill[cell[i]]] = i
+        fill[cell[i]] += 1
+    count = 0
+    for c in range(g * g):
+        s, e = start[c], start[c + 1]
+        if e - s < 2:
+            continue
+        run = order[s:e]
+        if e - s > 16:  # sort by x, then by y within runs of equal x
+            run = run[np.argsort(x[run])]
+            q = 0
+            while q < e - s:
+                r = q + 1
+                while r < e - s and x[run[r]] == x[run[q]]:
+                    r += 1
+                if r - q > 1:
+                    run[q:r] = run[q:r][np.argsort(y[run[q:r]])]
+                q = r
+            for j in range(1, e - s):
+                a, b = run[j - 1], run[j]
+                if x[a] == x[b] and y[a] == y[b]:
+                    if count < cap:
+                        pairs[count, 0], pairs[count, 1] = ids[min(a, b)], ids[max(a, b)]
+                    count += 1
+            continue
+        for j in range(1, e - s):
+            for i in range(j):
+                a, b = run[i], run[j]
+                if x[a] == x[b] and y[a] == y[b]:
+                    if count < cap:
+                        pairs[count, 0], pairs[count, 1] = ids[min(a, b)], ids[max(a, b)]
+                    count += 1
+                    break
+    return count, pairs[:min(count, cap)]
+
+
+def _hanging(found: _Found, p: NDArray, bedges: NDArray, btris: NDArray) -> None:
+    count, hits = hanging_nodes(p, bedges)
+    if count:
+        v, row = (int(x) for x in hits[0])
+        edge, tri = found.ids(bedges[row]), int(btris[row]) + found.base
+        found.add("hanging-node", f"vertex {v + found.base} lies inside edge {tuple(edge)} of "
+                  f"triangle {tri} (a hanging node: the mesh is not conforming there)",
+                  count, vertex=v + found.base, edge=edge, triangle=tri)
+
+
+def hanging_nodes(points: NDArray, bedges: NDArray) -> tuple[int, NDArray[np.int64]]:
+    """Vertices of ``bedges (B, 2)`` lying strictly inside one of them (exact test).
+
+    Returns the number of (vertex, edge) pairs and up to 64 of them as rows ``(vertex, edge
+    row)``. A hanging node of a mesh whose triangles do not overlap is always a boundary
+    vertex inside a boundary edge, so only those are tested: the boundary vertices go into a
+    k-d tree and each edge visits the cells its segment crosses, ``O(B log B)`` for short
+    edges and ``O(sqrt(B))`` cells at worst per edge.
+    """
+    bedges = np.ascontiguousarray(bedges, dtype=np.int64)
+    if len(bedges) == 0:
+        return 0, np.empty((0, 2), dtype=np.int64)
+    verts = np.unique(bedges)
+    xy = np.ascontiguousarray(points[verts], dtype=np.float64)
+    tree = _kdtree(xy)
+    return _stab(points, bedges, verts, xy, *tree, _CAP)
+
+
+@njit(cache=True)
+def _kdtree(xy):
+    """A k-d tree: ``order`` of the points and per node its range, children and box."""
+    n = xy.shape[0]
+    order = np.arange(n)
+    size = 2 * n + 1
+    lo = np.zeros(size, dtype=np.int64)
+    hi = np.zeros(size, dtype=np.int64)
+    child = np.full(size, -1, dtype=np.int64)  # left child; right child is child + 1
+    box = np.zeros((size, 4))
+    stack = np.empty(size, dtype=np.int64)
+    lo[0], hi[0] = 0, n
+    nodes, top = 1, 1
+    stack[0] = 0
+    while top:
+        top -= 1
+        k = stack[top]
+        s, e = lo[k], hi[k]
+        idx = order[s:e]
+        box[k, 0], box[k, 1] = xy[idx, 0].min(), xy[idx, 0].max()
+        box[k, 2], box[k, 3] = xy[idx, 1].min(), xy[idx, 1].max()
+        if e - s <= _LEAF:
+            continue
+        dim = 0 if box[k, 1] - box[k, 0] >= box[k, 3] - box[k, 2] else 1
+        order[s:e] = idx[np.argsort(xy[idx, dim])]
+        mid = (s + e) // 2
+        child[k] = nodes
+        lo[nodes], hi[nodes], lo[nodes + 1], hi[nodes + 1] = s, mid, mid, e
+        stack[top], stack[top + 1] = nodes, nodes + 1
+        nodes += 2
+        top += 2
+    return order, lo, hi, child, box
+
+
+@njit(cache=True)
+def _misses(bx, ax, ay, dx, dy):
+    """True when the box lies strictly on one side of the line (conservative margin)."""
+    pos = neg = 0
+    for cx in (bx[0], bx[1]):
+        for cy in (bx[2], bx[3]):
+            u, v = cy - ay, cx - ax
+            s = dx * u - dy * v
+            margin = 1e-14 * (abs(dx * u) + abs(dy * v))
+            if s > margin:
+                pos += 1
+            elif s < -margin:
+                neg += 1
+    return pos == 4 or neg == 4
+
+
+@njit(cache=True)
+def _stab(points, bedges, verts, xy, order, lo, hi, child, box, cap):
+    hits = np.empty((cap, 2), dtype=np.int64)
+    count = 0
+    buf = np.empty(SCRATCH)
+    stack = np.empty(lo.shape[0], dtype=np.int64)
+    for r in range(bedges.shape[0]):
+        a, b = bedges[r, 0], bedges[r, 1]
+        ax, ay, bx, by = points[a, 0], points[a, 1], points[b, 0], points[b, 1]
+        x0, x1, y0, y1 = min(ax, bx), max(ax, bx), min(ay, by), max(ay, by)
+        top = 1
+        stack[0] = 0
+        while top:
+            top -= 1
+            k = stack[top]
+            if box[k, 1] < x0 or box[k, 0] > x1 or box[k, 3] < y0 or box[k, 2] > y1:
+                continue
+            if _misses(box[k], ax, ay, bx - ax, by - ay):
+                continue
+            if child[k] >= 0:
+                stack[top], stack[top + 1] = child[k], child[k] + 1
+                top += 2
+                continue
+            for q in range(lo[k], hi[k]):
+                i = order[q]
+                v = verts[i]
+                px, py = xy[i, 0], xy[i, 1]
+                if v == a or v == b or px < x0 or px > x1 or py < y0 or py > y1:
+                    continue
+                if (px == ax and py == ay) or (px == bx and py == by):
+                    continue  # a duplicate point, reported as such
+                if orient_sign(ax, ay, bx, by, px, py, buf) == 0:
+                    if count < cap:
+                        hits[count, 0], hits[count, 1] = v, r
+                    count += 1
+    return count, hits[:min(count, cap)]
+
+
+# tags -----------------------------------------------------------------------------------
+
+
+def _integers(found: _Found, kind: str, value: ArrayLike, name: str) -> NDArray | None:
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        found.add(kind, f"{name} must hold integers ({exc})")
+        return None
+    if a.size and not np.issubdtype(a.dtype, np.integer):
+        found.add(kind, f"{name} must hold integers, got dtype {a.dtype}")
+        return None
+    return a.astype(np.int64)
+
+
+def _cell_tags(found: _Found, cell_tags: ArrayLike | None, m: int) -> NDArray | None:
+    if cell_tags is None:
+        return None
+    ct = _integers(found, "cell-tags", cell_tags, "cell_tags")
+    if ct is not None and ct.shape != (m,):
+        found.add("cell-tags", f"cell_tags must have shape ({m},), got {ct.shape}")
+        return None
+    return ct
+
+
+def _tagged_edges(found: _Found, edges, edge_tags, mesh_edges, n: int,
+                  dtype) -> tuple[NDArray | None, NDArray | None]:
+    if edges is None and edge_tags is None:
+        return None, None
+    if edges is None or edge_tags is None:
+        found.add("edge-tags", "edges and edge_tags must be given together")
+        return None, None
+    e = _integers(found, "edge-tags", edges, "edges")
+    et = _integers(found, "edge-tags", edge_tags, "edge_tags")
+    if e is None or et is None:
+        return None, None
+    if e.size == 0:
+        e = e.reshape(0, 2)
+    if e.ndim != 2 or e.shape[1] != 2:
+        found.add("edge-tags", f"edges must have shape (K, 2), got {e.shape}")
+        return None, None
+    if et.shape != (e.shape[0],):
+        found.add("edge-tags", f"edge_tags must have shape ({e.shape[0]},), got {et.shape}")
+        return None, None
+    bad = ((e < 0) | (e >= n)).any(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        found.add("edge-tags", f"edge {i} {tuple(found.ids(e[i]))} has a vertex index outside "
+                  f"{found.base}..{n - 1 + found.base}", np.count_nonzero(bad), edge_row=i)
+        return None, None
+    from .mesh import edge_ids
+
+    missing = edge_ids(mesh_edges, e, n) < 0
+    if missing.any():
+        i = int(np.flatnonzero(missing)[0])
+        found.add("edge-not-in-mesh", f"edge {i} {tuple(found.ids(e[i]))} is not an edge of "
+                  "any triangle", np.count_nonzero(missing), edge_row=i, edge=found.ids(e[i]))
+        return None, None
+    return np.ascontiguousarray(e, dtype=dtype), et
+
+
+# warnings -------------------------------------------------------------------------------
+
+
+def _unused(found: _Found, used: NDArray) -> None:
+    n = len(used)
+    if not used.all():
+        unused = np.flatnonzero(~used)
+        found.add("unused-points", f"{len(unused)} of {n} points are used by no triangle "
+                  f"(first: point {int(unused[0]) + found.base}); they are kept",
+                  len(unused), point=int(unused[0]) + found.base)
+
+
+def _pinched(found: _Found, bedges: NDArray) -> None:
+    out = np.bincount(bedges[:, 0], minlength=1)
+    pinched = np.flatnonzero(out > 1)
+    if len(pinched):
+        v = int(pinched[0])
+        found.add("pinched-vertex", f"vertex {v + found.base} joins {int(out[v])} separate fans "
+                  "of triangles (the mesh touches itself there)", len(pinched),
+                  vertex=v + found.base)
+
+
+def _small_angles(found: _Found, p: NDArray, t: NDArray, min_angle: float) -> None:
+    from .quality import min_angles
+
+    angles = min_angles(p, t)
+    small = angles < min_angle
+    if small.any():
+        i = int(np.argmin(angles))
+        found.add("small-angle", f"{int(small.sum())} triangles have an angle below "
+                  f"{min_angle:g} degrees (smallest: {angles[i]:.3g} degrees in triangle "
+                  f"{i + found.base})", int(small.sum()), triangle=i + found.base,
+                  angle=float(angles[i]))

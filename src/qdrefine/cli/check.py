@@ -1,0 +1,57 @@
+"""``qdrefine check IN``: every problem of a mesh file, not just the first."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from ..check import MIN_ANGLE, Checked
+from ..io import check_file
+from . import _common
+
+HELP = "check a mesh file: list every problem (exit 0 when usable, 1 when not)"
+
+
+def add_args(parser: argparse.ArgumentParser) -> None:
+    _common.setup(parser, quiet=False)
+    parser.epilog = ("Errors make the mesh unusable (qdrefine refuses to read it); warnings "
+                     "do not (clockwise triangles are flipped on reading, unused points are "
+                     "kept). Unreadable files end with one line 'qdrefine: error: ...'.")
+    parser.add_argument("input", metavar="IN", help="mesh file to check (never modified)")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    parser.add_argument("--min-angle", type=_common.positive_float, default=MIN_ANGLE,
+                        metavar="DEG",
+                        help=f"warn about triangles with a smaller angle (default {MIN_ANGLE:g})")
+
+
+def run(args: argparse.Namespace) -> int:
+    with _common.session():
+        _, found = check_file(args.input, min_angle=args.min_angle)
+        report = summary(args.input, found)
+        print(_common.dumps(report) if args.json else format_report(report))
+    return 0 if found.ok else 1
+
+
+def summary(path: str, found: Checked) -> dict[str, Any]:
+    """The JSON-ready report: file, usable, counts by severity, mesh figures, problems."""
+    problems = [p.to_json() for p in found.problems]
+    count = {s: sum(p["severity"] == s for p in problems) for s in ("error", "warning", "note")}
+    return {"file": str(path), "usable": found.ok, "errors": count["error"],
+            "warnings": count["warning"], "notes": count["note"], **found.summary,
+            "problems": problems}
+
+
+def format_report(report: dict[str, Any]) -> str:
+    """The report as text: one line of figures, one line per problem, the verdict."""
+    lines = []
+    if "triangles" in report:
+        lines.append(f"{report['file']}: {report['points']} points ({report['used_points']} "
+                     f"used), {report['triangles']} triangles, {report['edges']} edges "
+                     f"({report['boundary_edges']} on the boundary), Euler characteristic "
+                     f"{report['euler_characteristic']}")
+    for p in report["problems"]:
+        lines.append(f"{p['severity']:8} {p['kind']:17} {p['count']:>8}  {p['message']}")
+    verdict = "usable" if report["usable"] else "NOT usable"
+    lines.append(f"{report['file']}: {verdict} ({report['errors']} errors, "
+                 f"{report['warnings']} warnings)")
+    return "\n".join(lines)

@@ -1,0 +1,119 @@
+"""Memory planning: refuse a refinement that cannot fit before allocating anything."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .mesh import Mesh, index_dtype
+from .schemes import Scheme, get_scheme
+
+__all__ = ["check_memory", "memory_needed", "available_memory", "MEMORY_LIMIT_VARIABLE"]
+
+#: Environment variable capping the memory qdrefine may plan to use (e.g. ``4GiB``).
+MEMORY_LIMIT_VARIABLE = "QDREFINE_MEMORY_LIMIT"
+_UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+def memory_needed(n_points: int, n_triangles: int, scheme: str | Scheme, levels: int,
+                  tagged: bool = False) -> int:
+    """Peak bytes of uniform refinement by ``levels`` levels (an estimate from above).
+
+    At the last level the input mesh, the previous level, its edge tables and the output
+    are alive at once: ``16`` bytes per point, ``3 x 4`` (or ``3 x 8``) per triangle, ``8`` per
+    tag, ``72 + 6 x 4`` per triangle for the edge numbering and ``8`` per output triangle for
+    the parents. Edges follow from Euler's formula (``E = N + M``, at most ``3 M``) and, per
+    level, ``E' = (k + 1) E + I M`` with ``I`` inner edges per parent.
+    """
+    sch = get_scheme(scheme)
+    k, t = sch.stencil.per_edge, sch.n_children
+    inner = (3 * t - 3 * (k + 1)) // 2
+    n, m = int(n_points), int(n_triangles)
+    e = min(3 * m, n + m)
+
+    def size(n_: int, m_: int) -> int:
+        return 16 * n_ + (3 * np.dtype(index_dtype(n_)).itemsize + 8 * tagged) * m_
+
+    first = size(n, m)
+    prev_n, prev_m = n, m
+    for _ in range(levels):
+        prev_n, prev_m = n, m
+        n, m, e = n + k * e, t * m, (k + 1) * e + inner * m
+        if m > 2**64:
+            break
+    if levels == 0:
+        return 0
+    work = (72 + 6 * np.dtype(index_dtype(prev_n)).itemsize) * prev_m
+    previous = size(prev_n, prev_m) if levels > 1 else 0
+    return first + previous + work + size(n, m) + 8 * m
+
+
+def available_memory() -> tuple[int, str] | None:
+    """Bytes this process may still allocate, and where the figure comes from: the least of
+    ``MemAvailable`` (``/proc/meminfo``), the cgroup limit minus its usage and
+    ``$QDREFINE_MEMORY_LIMIT``; ``os.sysconf`` where there is no ``/proc``; ``None`` when
+    nothing is known."""
+    found: list[tuple[int, str]] = []
+    meminfo = _read("/proc/meminfo")
+    for line in (meminfo or "").splitlines():
+        if line.startswith("MemAvailable:"):
+            found.append((int(line.split()[1]) * 1024, "MemAvailable"))
+    for limit, usage in (("memory.max", "memory.current"),
+                         ("memory/memory.limit_in_bytes", "memory/memory.usage_in_bytes")):
+        lim, use = _read(f"/sys/fs/cgroup/{limit}"), _read(f"/sys/fs/cgroup/{usage}")
+        if lim and use and lim.strip().isdigit() and int(lim) < 2**60:
+            found.append((max(0, int(lim) - int(use)), "cgroup limit"))
+    if not found:
+        try:
+            found.append((os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"),
+                          "free memory"))
+        except (ValueError, OSError, AttributeError):
+            pass
+    cap = os.environ.get(MEMORY_LIMIT_VARIABLE)
+    if cap:
+        found.append((_parse_bytes(cap), MEMORY_LIMIT_VARIABLE))
+    return min(found) if found else None
+
+
+def check_memory(mesh: Mesh, scheme: str | Scheme, levels: int) -> None:
+    """Raise ``MemoryError`` when refining ``mesh`` ``levels`` times would need more memory
+    than :func:`available_memory` says there is ("refining M triangles L levels needs about
+    X GiB; Y GiB available")."""
+    from .refine import as_count  # refine imports this module
+
+    levels = as_count(levels, "levels")
+    avail = available_memory()
+    if levels == 0 or avail is None:
+        return
+    need = memory_needed(mesh.n_points, mesh.n_triangles, scheme, levels,
+                         mesh.cell_tags is not None)
+    if need > avail[0]:
+        source = f" ({avail[1]})" if avail[1] == MEMORY_LIMIT_VARIABLE else ""
+        raise MemoryError(f"refining {mesh.n_triangles} triangles {levels} level"
+                          f"{'s' if levels != 1 else ''} needs about {_gib(need)} GiB; "
+                          f"{_gib(avail[0])} GiB available{source}")
+
+
+def _gib(n: int) -> str:
+    return f"{n / 2**30:.3g}" if n < 2**100 else "more than 1e+21"
+
+
+def _read(path: str) -> str | None:
+    try:
+        return Path(path).read_text()
+    except (OSError, ValueError):
+        return None
+
+
+def _parse_bytes(text: str) -> int:
+    value = text.strip().upper().removesuffix("B").removesuffix("I")
+    unit = value[-1:] if value[-1:] in _UNITS and value[-1:] else ""
+    try:
+        number = float(value[:len(value) - len(unit)])
+    except ValueError:
+        raise ValueError(f"{MEMORY_LIMIT_VARIABLE}={text!r}: expected a size such as 4GiB, "
+                         "512M or 1000000") from None
+    if not number >= 0:
+        raise ValueError(f"{MEMORY_LIMIT_VARIABLE}={text!r}: expected a size >= 0")
+    return int(number * _UNITS[unit])

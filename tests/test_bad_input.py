@@ -1,0 +1,288 @@
+"""Every bad-input kind of the robustness issue, through the Python API and the command line.
+
+Each case is a small file (or none) with the message it must produce. The API part calls
+``qdrefine.read`` (and ``Mesh`` on the same arrays where the problem is in the content); the
+command-line part runs ``qdrefine refine IN OUT`` and ``qdrefine check IN`` as subprocesses
+and checks the exit code, the one-line message, that OUT does not exist and that the input
+files are unchanged byte for byte (and no other file appeared).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import qdrefine
+from qdrefine import Mesh, check, examples
+from qdrefine.memory import MEMORY_LIMIT_VARIABLE, memory_needed
+
+DATA = Path(__file__).parent / "data"
+
+
+def msh22(nodes, triangles=(), lines=(), quads=()) -> str:
+    """A Gmsh 2.2 ASCII file; ``nodes`` are (x, y) or (x, y, z), cells 0-based."""
+    out = ["$MeshFormat", "2.2 0 8", "$EndMeshFormat", "$Nodes", str(len(nodes))]
+    for i, xyz in enumerate(nodes):
+        x, y, z = (*xyz, 0.0)[:3]
+        out.append(f"{i + 1} {x} {y} {z}")
+    cells = [(2, c) for c in triangles] + [(1, c) for c in lines] + [(3, c) for c in quads]
+    out += ["$EndNodes", "$Elements", str(len(cells))]
+    out += [f"{i + 1} {typ} 2 5 5 " + " ".join(str(v + 1) for v in vs)
+            for i, (typ, vs) in enumerate(cells)]
+    return "\n".join(out + ["$EndElements", ""])
+
+
+SQ = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
+SQ_TRIS = [(0, 1, 2), (0, 2, 3)]
+HANGING = [(0.0, 0.0), (2.0, 0.0), (1.0, 1.0), (1.0, 0.0), (1.0, -1.0)]
+HANGING_TRIS = [(0, 1, 2), (0, 4, 3), (3, 4, 1)]  # vertex 3 inside edge (0, 1)
+
+
+@dataclass
+class Case:
+    """Files to create, the input to give, the message expected everywhere (a substring),
+    the error type of ``qdrefine.read``, the arrays ``Mesh`` must refuse with the same
+    message (optional), and the kind ``qdrefine check`` must report (None: unreadable)."""
+
+    files: dict[str, str | bytes]
+    input: str
+    message: str
+    error: type[Exception] = ValueError
+    arrays: tuple | None = None
+    kind: str | None = None
+    mesh_message: str | None = None
+    extra: list[str] = field(default_factory=list)
+
+
+def _content(kind, nodes, tris, message, mesh_message=None, **cells) -> Case:
+    return Case({"in.msh": msh22(nodes, tris, **cells)}, "in.msh", message,
+                arrays=(np.array(nodes, dtype=float)[:, :2], np.array(tris, dtype=int)),
+                kind=kind, mesh_message=mesh_message)
+
+
+CASES: dict[str, Case] = {
+    "missing file": Case({}, "missing.msh", "missing.msh: no such file", FileNotFoundError),
+    "unreadable file (a directory)": Case({"dir.msh/keep": "x"}, "dir.msh",
+                                          "dir.msh: is a directory", IsADirectoryError),
+    "unreadable file (not text)": Case({"b.node": b"\xff\xfe\x00\x01" * 20,
+                                        "b.ele": "1 3 0\n0 0 1 2\n"}, "b.ele",
+                                       "b.node: not a text file"),
+    "unknown format": Case({"in.xyz": "0 0\n"}, "in.xyz", "in.xyz: unknown file format"),
+    "truncated file": Case({"cut.msh": (DATA / "two_regions_22.msh").read_text()[:900]},
+                           "cut.msh", "cut.msh: not a readable Gmsh"),
+    "truncated Triangle file": Case({"t.node": "4 2 0 0\n0 0 0\n1 1 0\n",
+                                     "t.ele": "1 3 0\n0 0 1 2\n"}, "t.ele",
+                                    "t.node:1: file ends early"),
+    "corrupt file": Case({"junk.vtu": np.random.default_rng(1).bytes(400)}, "junk.vtu",
+                         "junk.vtu: not a readable VTK XML"),
+    "no triangles": Case({"in.msh": msh22(SQ, lines=[(0, 1)])}, "in.msh",
+                         "in.msh: holds no triangles", arrays=(np.array(SQ), np.empty((0, 3), int)),
+                         kind="no-triangles", mesh_message="the mesh has no triangles"),
+    "non-triangle cells": Case({"in.msh": msh22(SQ, SQ_TRIS, quads=[(0, 1, 2, 3)])}, "in.msh",
+                               "in.msh: holds 1 quad cells", kind="cell-types"),
+    "NaN coordinate": _content("non-finite", [(0, 0), (1, 0), ("nan", 1)], [(0, 1, 2)],
+                               "point 2 has a non-finite coordinate (nan, 1.0)"),
+    "infinite coordinate": Case({"i.node": "3 2 0 0\n1 0 0\n2 1 0\n3 inf 1\n",
+                                 "i.ele": "1 3 0\n1 1 2 3\n"}, "i.ele",
+                                "i.node:4: point 3 has a non-finite coordinate (inf, 1.0)",
+                                arrays=(np.array([(0, 0), (1, 0), (np.inf, 1)]),
+                                        np.array([(0, 1, 2)])),
+                                kind="non-finite",
+                                mesh_message="point 2 has a non-finite coordinate (inf, 1.0)"),
+    "coordinate out of range": _content("coordinate-range", [(0, 0), (1e200, 0), (0, 1)],
+                                        [(0, 1, 2)], "point 1 has a coordinate (1e+200, 0.0) "
+                                        "outside the supported range"),
+    "index out of range": Case({"x.node": "3 2 0 0\n0 0 0\n1 1 0\n2 0 1\n",
+                                "x.ele": "1 3 0\n0 0 1 9\n"}, "x.ele",
+                               "x.ele:2: vertex 9 is not in x.node (vertices 0..2)",
+                               arrays=(np.array([(0, 0), (1, 0), (0, 1)]), np.array([(0, 1, 9)])),
+                               kind="index-range",
+                               mesh_message="triangle 0 (0, 1, 9) has a vertex index outside "
+                                            "0..2"),
+    "duplicate vertices": _content("duplicate-points", SQ + [(1.0, 1.0)],
+                                   [(0, 1, 2), (0, 4, 3)],
+                                   "points 2 and 4 are both at (1.0, 1.0)"),
+    "zero-area triangle": _content("zero-area", [(0, 0), (1, 0), (2, 0)], [(0, 1, 2)],
+                                   "triangle 0 (0, 1, 2) has zero area"),
+    "edge shared by three triangles": _content(
+        "overused-edge", SQ + [(2.0, 0.5)], SQ_TRIS + [(0, 4, 2)],
+        "edge (0, 2) is shared by 3 triangles (0, 1, 2)"),
+    "overlapping triangles (folded edge)": _content(
+        "folded-edge", SQ + [(2.0, 0.5)], [(0, 1, 2), (0, 4, 2)],
+        "triangles 0 and 1 lie on the same side of their common edge (0, 2)"),
+    "hanging node": _content("hanging-node", HANGING, HANGING_TRIS,
+                             "vertex 3 lies inside edge (0, 1) of triangle 0"),
+    "3D non-flat input": Case({"in.msh": msh22([(0, 0, 0), (1, 0, 0), (0, 1, 0.5)],
+                                               [(0, 1, 2)])}, "in.msh",
+                              "in.msh: the mesh is not flat: 1 of 3 points have z != 0",
+                              kind="not-flat"),
+    "tagged edge not in the mesh": Case({"in.msh": msh22(SQ, SQ_TRIS, lines=[(1, 3)])},
+                                        "in.msh", "edge 0 (1, 3) is not an edge of any "
+                                        "triangle", kind="edge-not-in-mesh"),
+}
+
+
+def _snapshot(folder: Path) -> dict[str, bytes | None]:
+    return {str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else None)
+            for p in sorted(folder.rglob("*"))}
+
+
+def _make(tmp_path: Path, case: Case) -> Path:
+    for name, content in case.files.items():
+        path = tmp_path / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content)
+    return tmp_path / case.input
+
+
+def start(*args, env=None) -> subprocess.Popen:
+    """Start ``python -m qdrefine ARGS`` (the real entry point)."""
+    return subprocess.Popen([sys.executable, "-m", "qdrefine", *map(str, args)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=None if env is None else os.environ | env)
+
+
+def finish(process: subprocess.Popen) -> subprocess.CompletedProcess:
+    out, err = process.communicate(timeout=300)
+    return subprocess.CompletedProcess(process.args, process.returncode, out, err)
+
+
+def cli(*args, env=None) -> subprocess.CompletedProcess:
+    return finish(start(*args, env=env))
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_python_api(tmp_path, name):
+    case = CASES[name]
+    path = _make(tmp_path, case)
+    before = _snapshot(tmp_path)
+    with pytest.raises(case.error) as info:
+        qdrefine.read(path)
+    assert str(info.value).startswith(str(path.with_suffix(""))), info.value
+    assert case.message in str(info.value)
+    if case.arrays is not None:
+        with pytest.raises(ValueError) as info:
+            Mesh(*case.arrays)
+        assert (case.mesh_message or case.message) in str(info.value)
+    if case.kind is not None:  # check_file lists the same problem, and does not stop there
+        _, found = qdrefine.io.check_file(path)
+        assert case.kind in {p.kind for p in found.errors}
+    assert _snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_command_line(tmp_path, name):
+    case = CASES[name]
+    path = _make(tmp_path, case)
+    before = _snapshot(tmp_path)
+    out = tmp_path / "out.vtu"
+    both = start("refine", path, out), start("check", path)  # run side by side
+    refined, checked = (finish(p) for p in both)
+    assert refined.returncode == 1, refined
+    assert refined.stdout == ""
+    assert refined.stderr.startswith("qdrefine: error: ") and refined.stderr.count("\n") == 1
+    assert case.message in refined.stderr, refined.stderr
+    assert checked.returncode == 1, checked
+    if case.kind is None:  # unreadable: the one-line error
+        assert checked.stdout == "" and checked.stderr.startswith("qdrefine: error: ")
+        assert case.message in checked.stderr and checked.stderr.count("\n") == 1
+    else:
+        assert checked.stderr == ""
+        line = next(x for x in checked.stdout.splitlines() if x.startswith("error"))
+        assert line.split()[1] == case.kind and case.message in checked.stdout, checked.stdout
+        errors = sum(x.startswith("error ") for x in checked.stdout.splitlines())
+        assert checked.stdout.splitlines()[-1] == f"{path}: NOT usable ({errors} errors, " \
+            f"{sum(x.startswith('warning ') for x in checked.stdout.splitlines())} warnings)"
+    assert not out.exists()
+    assert _snapshot(tmp_path) == before
+
+
+# orientation: fixed on reading (documented), refused by Mesh --------------------------------
+
+CW = [(0, 2, 1)]
+MIXED = [(0, 1, 2), (0, 3, 2)]
+
+
+@pytest.mark.parametrize(("nodes", "tris", "count"), [(SQ[:3], CW, "1 of 1"),
+                                                       (SQ, MIXED, "1 of 2")])
+def test_clockwise_and_mixed_orientation(tmp_path, nodes, tris, count):
+    path = tmp_path / "in.msh"
+    path.write_text(msh22(nodes, tris))
+    before = path.read_bytes()
+    with pytest.raises(ValueError, match=r"triangle \d+ .* is clockwise"):
+        Mesh(np.array(nodes), np.array(tris))
+    with pytest.warns(UserWarning, match=f"in.msh: {count} triangles were clockwise"):
+        mesh = qdrefine.read(path)
+    assert (qdrefine.quality.areas(mesh) > 0).all()
+    refined = cli("refine", path, tmp_path / "out.vtu", "-q")
+    assert refined.returncode == 0 and refined.stdout == ""
+    assert refined.stderr == f"qdrefine: warning: {path}: {count} triangles were clockwise " \
+                             "and have been flipped\n"
+    checked = cli("check", path, "--json")
+    assert checked.returncode == 0, checked
+    report = json.loads(checked.stdout)
+    assert report["usable"] and [p["kind"] for p in report["problems"]] == ["clockwise"]
+    assert path.read_bytes() == before
+    assert qdrefine.read(tmp_path / "out.vtu").n_triangles == 7 * len(tris)
+
+
+# a mesh too large for the memory ----------------------------------------------------------
+
+def test_too_large_for_memory_python_api():
+    mesh = examples.square(1)  # 2 triangles; 12 levels: 2.8e10 triangles, about 1.3 TB
+    with pytest.raises(MemoryError, match=r"refining 2 triangles 12 levels needs about "
+                                          r"[\d.e+]+ GiB; [\d.e+]+ GiB available"):
+        qdrefine.refine(mesh, levels=12)
+
+
+def test_memory_limit_variable(monkeypatch):
+    mesh = examples.square(4)
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "1KiB")
+    with pytest.raises(MemoryError, match=f"GiB available \\({MEMORY_LIMIT_VARIABLE}\\)"):
+        qdrefine.refine(mesh)
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "lots")
+    with pytest.raises(ValueError, match="expected a size"):
+        qdrefine.refine(mesh)
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "1GiB")
+    assert qdrefine.refine(mesh).n_triangles == 7 * mesh.n_triangles
+
+
+@pytest.mark.parametrize("scheme", ["7t-qd", "4t-red"])
+@pytest.mark.parametrize("levels", [1, 2, 3])
+def test_memory_estimate_covers_the_arrays_made(scheme, levels):
+    mesh = examples.plate_with_hole()
+    fine, parents = qdrefine.refine_with_parents(mesh, scheme, levels)
+    made = sum(a.nbytes for a in (fine.points, fine.triangles, fine.cell_tags, fine.edges,
+                                  fine.edge_tags, parents) if a is not None)
+    need = memory_needed(mesh.n_points, mesh.n_triangles, scheme, levels, tagged=True)
+    assert made <= need <= 4 * made + 200 * mesh.n_triangles * 7 ** (levels - 1)
+
+
+def test_too_large_for_memory_command_line(tmp_path):
+    path = tmp_path / "in.msh"
+    qdrefine.write(path, examples.square(1))
+    before = _snapshot(tmp_path)
+    out = tmp_path / "out.msh"
+    result = cli("refine", path, out, "--levels", "6", env={MEMORY_LIMIT_VARIABLE: "1MiB"})
+    assert result.returncode == 1
+    # the check covers all six levels before the first one is refined
+    assert result.stderr.startswith("qdrefine: error: refining 2 triangles 6 levels ")
+    assert "GiB available (QDREFINE_MEMORY_LIMIT)" in result.stderr
+    assert result.stderr.count("\n") == 1
+    assert not out.exists() and _snapshot(tmp_path) == before
+
+
+def test_every_kind_is_documented():
+    guide = (Path(__file__).parents[1] / "docs" / "guide.md").read_text()
+    for kind in check.KINDS:
+        assert f"`{kind}`" in guide, kind
