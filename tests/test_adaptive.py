@@ -11,11 +11,13 @@ from meshes import jittered_grid
 from oracle import exact, orient
 from qdrefine import Mesh, examples, partition_many, refine, refine_with_parents, scheme_names
 from qdrefine.adaptive import (
+    Families,
     canonical_edges,
     canonical_labels,
     closure,
     refine_cycles,
     refine_marked,
+    refine_step,
 )
 from qdrefine.kernels import number_edges
 from qdrefine.predicates import orient_signs
@@ -253,3 +255,291 @@ def test_bad_marks_raise():
         refine(mesh, levels=-1, marked=[0])
     with pytest.raises(ValueError, match="cycles"):
         refine_cycles(mesh, lambda m: [0], -1)
+
+
+# ----------------------------------------------------------------------------------------
+# repeated cycles: transition families are coarsened before they are refined
+
+SCALE = 6**7  # room for seven trisections or bisections on integer coordinates
+
+
+def exact_grid(n, seed):
+    """A jittered grid on integer coordinates (multiples of 6^7): the points of up to seven
+    levels of refinement are integers, so twice-areas and orientation tests below are exact
+    in int64 (coordinates < 2^26, products < 2^53)."""
+    g = jittered_grid(n, seed)
+    return Mesh(np.round(g.points * 128) * SCALE, g.triangles, g.cell_tags, g.edges,
+                g.edge_tags)
+
+
+def ints(points):
+    p = np.asarray(points)
+    assert (p == np.round(p)).all(), "points are no longer integers: deeper than the scale"
+    return np.round(p).astype(np.int64)
+
+
+def twice_areas(p, tris):
+    a, b, c = p[tris[..., 0]], p[tris[..., 1]], p[tris[..., 2]]
+    return ((b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1])
+            - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0]))
+
+
+def inside(q, tri):
+    """Points ``q (..., 2)`` in the closed counter-clockwise triangles ``tri (..., 3, 2)``
+    (broadcast), exact on integers."""
+    ok = np.ones(np.broadcast_shapes(q.shape[:-1], tri.shape[:-2]), dtype=bool)
+    for i in range(3):
+        a, b = tri[..., i, :], tri[..., (i + 1) % 3, :]
+        ok &= ((b[..., 0] - a[..., 0]) * (q[..., 1] - a[..., 1])
+               - (b[..., 1] - a[..., 1]) * (q[..., 0] - a[..., 0])) >= 0
+    return ok
+
+
+def contained(x, regions):
+    """Whether each triangle ``x (X, 3, 2)`` lies in one of ``regions (R, 3, 2)``."""
+    return inside(x[:, None, :, :], regions[None, :, None, :, :]).all(axis=2).any(axis=1)
+
+
+def children_points(vertices, scheme, times):
+    """The triangles ``(K, 3, 2)`` of ``times`` nested full partitions of ``vertices``."""
+    v = vertices.reshape(-1, 3, 2).astype(float)
+    for _ in range(times):
+        pts, tris = partition_many(v, scheme)
+        v = np.take_along_axis(pts[:, None, :, :], tris[..., None], axis=2).reshape(-1, 3, 2)
+    return ints(v)
+
+
+def check_step(mesh, fam, marked, fine, parents, new_fam, scheme):
+    """Every invariant of one :func:`refine_step`, from the output alone and oracles."""
+    m = mesh.n_triangles
+    member = fam.member
+    p0, p1 = ints(mesh.points), ints(fine.points)
+    # conforming, same topology, positively oriented, old points kept
+    assert conformity(fine).ok
+    assert euler_characteristic(fine) == euler_characteristic(mesh)
+    assert (twice_areas(p1, fine.triangles) > 0).all()
+    np.testing.assert_array_equal(fine.points[: mesh.n_points], mesh.points)
+    # parents in order, cell tags inherited, tagged edges cut into chains
+    assert (np.diff(parents) >= 0).all()
+    np.testing.assert_array_equal(fine.cell_tags, mesh.cell_tags[parents])
+    check_tag_chains(mesh, fine)
+    # areas exact per input triangle, a coarsened family counting as one region
+    group = np.where(member >= 0, m + member, np.arange(m))
+    np.testing.assert_array_equal(
+        np.bincount(group[parents], twice_areas(p1, fine.triangles), minlength=2 * m),
+        np.bincount(group, twice_areas(p0, mesh.triangles), minlength=2 * m))
+    # nested: every output triangle lies in its input triangle (its family's parent)
+    region = p0[mesh.triangles]
+    fm = np.flatnonzero(member >= 0)
+    region[fm] = p0[fam.rows[member[fm]]]
+    assert contained_each(p1[fine.triangles], region[parents]).all()
+    check_marked_refined(mesh, fam, member, marked, fine, parents, scheme)
+    check_rest_unchanged(mesh, member, marked, fine, parents)
+    check_families(fine, new_fam, p1)
+    check_no_transition_of_transition(mesh, member, fam, new_fam, scheme)
+
+
+def check_no_transition_of_transition(mesh, member, fam, new_fam, scheme):
+    """A new family's parent is never a transition child: if its row is an old member's,
+    it is also a child of the full partition of that member's family parent."""
+    old = {frozenset(r): g for g, r in enumerate(mesh.triangles.tolist()) if member[g] >= 0}
+    p0 = ints(mesh.points)
+    for r in new_fam.rows.tolist():
+        g = old.get(frozenset(r))
+        if g is not None:
+            kids = children_points(p0[fam.rows[member[g]]], scheme, 1)
+            key = sorted(map(tuple, p0[r].tolist()))
+            assert key in [sorted(map(tuple, c.tolist())) for c in kids]
+
+
+def contained_each(x, regions):
+    """Whether ``x[i]`` lies in ``regions[i]`` (both ``(X, 3, 2)``)."""
+    return inside(x, regions[:, None, :, :]).all(axis=1)
+
+
+def check_marked_refined(mesh, fam, member, marked, fine, parents, scheme):
+    """Every marked triangle is gone. One that is no transition child: the output
+    triangles in it lie in the children of its partition. A marked transition child: the
+    output triangles meeting its interior lie in the children of its family parent's
+    partition and none is larger than it."""
+    p0, p1 = ints(mesh.points), ints(fine.points)
+    rows = {frozenset(r) for r in fine.triangles.tolist()}
+    gone = [frozenset(r) not in rows for r in mesh.triangles[marked].tolist()]
+    assert all(gone)
+    t = get_scheme(scheme).n_children
+    ts = np.flatnonzero(marked & (member < 0))
+    kids = children_points(p0[mesh.triangles[ts]], scheme, 1).reshape(ts.size, t, 3, 2)
+    sel = np.flatnonzero(np.isin(parents, ts))
+    x = p1[fine.triangles[sel]]
+    assert inside(x[:, None], kids[np.searchsorted(ts, parents[sel])][:, :, None]
+                  ).all(axis=2).any(axis=1).all()
+    gs = np.flatnonzero(marked & (member >= 0))
+    if not gs.size:
+        return
+    fs = np.unique(member[gs])
+    kids = children_points(p0[fam.rows[fs]], scheme, 1).reshape(fs.size, t, 3, 2)
+    out_family = np.where(member[parents] >= 0, member[parents], -1)
+    for g in gs:
+        x = p1[fine.triangles[out_family == member[g]]]
+        tri = p0[mesh.triangles[g]]
+        meets = np.array([overlap_area(xi, tri) > 0 for xi in x])
+        assert meets.sum() > 1
+        own = np.arange(3 * meets.sum()).reshape(-1, 3)
+        assert (twice_areas(x[meets].reshape(-1, 2), own) <= twice_areas(tri, np.arange(3))).all()
+        assert contained(x[meets], kids[np.searchsorted(fs, member[g])]).all()
+
+
+def overlap_area(a, b):
+    """Exact area of the intersection of two counter-clockwise triangles (integer
+    coordinates): ``a`` clipped by the three half-planes of ``b`` (Sutherland-Hodgman)."""
+    poly = [(F(int(x)), F(int(y))) for x, y in a]
+    for i in range(3):
+        (px, py), (qx, qy) = b[i].tolist(), b[(i + 1) % 3].tolist()
+
+        def side(v, px=px, py=py, qx=qx, qy=qy):
+            return (qx - px) * (v[1] - py) - (qy - py) * (v[0] - px)
+
+        out = []
+        for j, v in enumerate(poly):
+            w = poly[(j + 1) % len(poly)]
+            sv, sw = side(v), side(w)
+            if sv >= 0:
+                out.append(v)
+            if sv * sw < 0:
+                s = sv / (sv - sw)
+                out.append((v[0] + s * (w[0] - v[0]), v[1] + s * (w[1] - v[1])))
+        poly = out
+        if len(poly) < 3:
+            return F(0)
+    return sum(poly[j][0] * poly[(j + 1) % len(poly)][1]
+               - poly[(j + 1) % len(poly)][0] * poly[j][1] for j in range(len(poly))) / 2
+
+
+def check_rest_unchanged(mesh, member, marked, fine, parents):
+    """Input triangles that are not marked, have no split edge and are not in a family
+    with a marked member or a split edge keep their row; marked or split ones change."""
+    edges, tri_edges, _ = number_edges(mesh.triangles, mesh.n_points)
+    out = {tuple(e) for e in number_edges(fine.triangles, fine.n_points)[0].tolist()}
+    split = np.array([tuple(e) not in out for e in edges.tolist()])
+    hit = marked | split[tri_edges].any(axis=1)
+    touched = np.zeros(member.max() + 2, dtype=bool)
+    touched[member[hit & (member >= 0)]] = True
+    affected = hit | ((member >= 0) & touched[member])
+    counts = np.bincount(parents, minlength=mesh.n_triangles)
+    assert (counts[~affected] == 1).all()
+    np.testing.assert_array_equal(fine.triangles[np.isin(parents, np.flatnonzero(~affected))],
+                                  mesh.triangles[~affected])
+    assert (counts[hit & (member < 0)] > 1).all()
+
+
+def check_families(fine, fam, p):
+    """Each family's members lie in its parent and fill it."""
+    assert fam.member.shape == (fine.n_triangles,)
+    idx = np.flatnonzero(fam.member >= 0)
+    assert contained_each(p[fine.triangles[idx]], p[fam.rows[fam.member[idx]]]).all()
+    total = np.bincount(fam.member[idx], twice_areas(p, fine.triangles[idx]),
+                        minlength=fam.n_families)
+    np.testing.assert_array_equal(total, twice_areas(p, fam.rows))
+    np.testing.assert_array_equal(fam.stencil[:, :3].min(axis=1), fam.rows.min(axis=1))
+
+
+def check_tag_chains(mesh, fine):
+    """Each tagged input edge a -> b became a chain a -> ... -> b of output tagged edges
+    with its tag, on the segment; every boundary edge of the output is tagged."""
+    p0, p1 = ints(mesh.points), ints(fine.points)
+    e, tags = fine.edges.astype(np.int64), fine.edge_tags
+    i = 0
+    for (a, b), tag in zip(mesh.edges.tolist(), mesh.edge_tags.tolist(), strict=True):
+        assert e[i, 0] == a
+        while e[i, 1] != b:
+            assert tags[i] == tag and e[i + 1, 0] == e[i, 1]
+            d = p1[e[i, 1]] - p0[a]
+            assert d[0] * (p0[b] - p0[a])[1] == d[1] * (p0[b] - p0[a])[0]  # on the segment
+            i += 1
+        assert tags[i] == tag
+        i += 1
+    assert i == len(e)
+    b = {frozenset(x) for x in boundary_edges(fine).tolist()}
+    assert b == {frozenset(x) for x in fine.edges.tolist()}
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+@settings(max_examples=6, deadline=None)
+@given(n=st.integers(2, 4), seed=st.integers(0, 10**6),
+       fraction=st.sampled_from([0.05, 0.2, 0.5]), keep=st.sampled_from([0.0, 0.5, 0.9]))
+def test_cycles_coarsen_transitions_and_keep_every_invariant(scheme, n, seed, fraction, keep):
+    """A high floor (keep=0.9) makes the quality guard promote transitions often."""
+    mesh = exact_grid(n, seed)
+    rng = np.random.default_rng(seed)
+    fam = Families.empty(mesh.n_triangles, get_scheme(scheme).stencil.per_edge)
+    for _ in range(3):
+        marked = rng.random(mesh.n_triangles) < fraction
+        if (fam.member >= 0).any():  # always mark a transition child
+            marked[rng.choice(np.flatnonzero(fam.member >= 0))] = True
+        marked[rng.integers(mesh.n_triangles)] = True
+        floor = keep * min_angles(mesh).min()
+        fine, parents, new_fam = refine_step(mesh, marked, scheme, floor, fam)
+        check_step(mesh, fam, marked, fine, parents, new_fam, scheme)
+        mesh, fam = fine, new_fam
+
+
+@pytest.mark.parametrize("scheme", ["7t-qd", "4t-red"])
+def test_refine_cycles_parents_are_nested_in_the_input(scheme):
+    mesh = exact_grid(3, 4)
+    rng = np.random.default_rng(1)
+    fine, parents = refine_cycles(mesh, lambda m: rng.random(m.n_triangles) < 0.2, 3, scheme)
+    p0, p1 = ints(mesh.points), ints(fine.points)
+    assert conformity(fine).ok
+    assert contained_each(p1[fine.triangles], p0[mesh.triangles[parents]]).all()
+    np.testing.assert_array_equal(np.bincount(parents, twice_areas(p1, fine.triangles)),
+                                  twice_areas(p0, mesh.triangles))
+    np.testing.assert_array_equal(fine.cell_tags, mesh.cell_tags[parents])
+
+
+def test_untouched_families_are_copied_and_a_marked_one_is_coarsened():
+    mesh = jittered_grid(6, seed=21)
+    fine, _, fam = refine_step(mesh, [0])
+    assert fam.n_families > 0
+    # far away from everything: the families and their rows stay
+    far = np.argmax(np.linalg.norm(fine.points[fine.triangles].mean(axis=1)
+                                   - fine.points[fine.triangles[0]].mean(axis=0), axis=1))
+    again, parents, fam2 = refine_step(fine, [far], families=fam)
+    kept = np.isin(parents, np.flatnonzero(fam.member >= 0))
+    assert kept.sum() >= 0.5 * (fam.member >= 0).sum()
+    np.testing.assert_array_equal(again.triangles[kept], fine.triangles[parents[kept]])
+    # marking a member: its family's parent is partitioned, no transition of it remains
+    g = int(np.flatnonzero(fam.member >= 0)[0])
+    out, parents, fam3 = refine_step(fine, [g], families=fam)
+    assert conformity(out).ok
+    rows = {frozenset(r) for r in out.triangles.tolist()}
+    assert frozenset(fine.triangles[g].tolist()) not in rows
+    assert frozenset(fam.rows[fam.member[g]].tolist()) not in \
+        {frozenset(r) for r in fam3.rows.tolist()}
+
+
+def test_repeated_cycles_do_not_compound_transitions():
+    """The random-mark experiment of docs/adaptive.md: with families the minimum angle
+    stays above the floor-free bound reached without them."""
+    mesh = jittered_grid(5, seed=3)
+    a0 = min_angles(mesh).min()
+    worst = {}
+    for coarsen in (True, False):
+        rng = np.random.default_rng(7)
+        fine, _ = refine_cycles(mesh, lambda m, r=rng: r.random(m.n_triangles) < 0.04, 7,
+                                "7t-qd", keep=0.0, coarsen=coarsen)
+        worst[coarsen] = min_angles(fine).min() / a0
+    assert worst[True] >= 0.5
+    assert worst[True] > worst[False]
+
+
+def test_families_are_validated():
+    mesh = examples.square(2)
+    fine, _, fam = refine_step(mesh, [0])
+    with pytest.raises(ValueError, match="families do not fit"):
+        refine_step(mesh, [0], families=fam)
+    with pytest.raises(ValueError, match="families do not fit"):
+        refine_step(fine, [0], "4t-le", families=fam)
+    with pytest.raises(ValueError, match="consecutive"):
+        Families(np.r_[0, -1, 0], np.zeros((1, 3)), -np.ones((1, 9)))
+    with pytest.raises(ValueError, match="stencil"):
+        Families(np.r_[0, 0], np.zeros((1, 3)), -np.ones((1, 7)))

@@ -15,6 +15,8 @@ True
 from __future__ import annotations
 
 from collections.abc import Callable
+from os import PathLike
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -23,7 +25,7 @@ from .adaptive import as_mask
 from .mesh import Mesh
 
 __all__ = ["mark_ids", "mark_mask", "mark_tag", "mark_region", "mark_box", "mark_dorfler",
-           "mark_maximum"]
+           "mark_maximum", "mark_file"]
 
 
 def mark_ids(mesh: Mesh, ids: ArrayLike) -> NDArray[np.bool_]:
@@ -47,6 +49,64 @@ def mark_tag(mesh: Mesh, tags: int | ArrayLike) -> NDArray[np.bool_]:
     if mesh.cell_tags is None:
         raise ValueError("the mesh has no cell tags")
     return np.isin(mesh.cell_tags, np.atleast_1d(np.asarray(tags, dtype=np.int64)))
+
+
+def mark_file(mesh: Mesh, path: str | PathLike[str]) -> NDArray[np.bool_]:
+    """Triangles listed in a file: a text file of triangle ids (0-based, whitespace or
+    line separated, ``#`` starts a comment), or a ``.npy`` file of ids ``(K,) int`` or of a
+    boolean mask ``(M,)``. Errors name the file and the line (or entry).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from qdrefine import examples
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     f = os.path.join(d, "ids.txt")
+    ...     _ = open(f, "w").write("0 3 5  # a comment")
+    ...     mark_file(examples.square(2), f).nonzero()[0].tolist()
+    [0, 3, 5]
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
+    if path.suffix.lower() == ".npy":
+        return _npy_marks(path, mesh.n_triangles)
+    n = mesh.n_triangles
+    mask = np.zeros(n, dtype=bool)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text file of triangle ids (or a .npy file)") from None
+    for line, content in enumerate(text.splitlines(), start=1):
+        for word in content.split("#", 1)[0].split():
+            try:
+                t = int(word)
+            except ValueError:
+                raise ValueError(f"{path}, line {line}: {word!r} is not a triangle id") from None
+            if not 0 <= t < n:
+                raise ValueError(f"{path}, line {line}: triangle id {t} is outside 0..{n - 1}")
+            mask[t] = True
+    return mask
+
+
+def _npy_marks(path: Path, n: int) -> NDArray[np.bool_]:
+    try:
+        a = np.load(path, allow_pickle=False)
+    except (ValueError, OSError) as exc:
+        raise ValueError(f"{path}: not a readable .npy file ({exc})") from None
+    if a.dtype == bool:
+        if a.shape != (n,):
+            raise ValueError(f"{path}: a boolean mask needs shape ({n},) (one entry per "
+                             f"triangle), got {a.shape}")
+        return a.copy()
+    if not np.issubdtype(a.dtype, np.integer) or a.ndim != 1:
+        raise ValueError(f"{path}: expected triangle ids (K,) int or a mask ({n},) bool, got "
+                         f"{a.dtype} {a.shape}")
+    bad = np.flatnonzero((a < 0) | (a >= n))
+    if bad.size:
+        raise ValueError(f"{path}, entry {int(bad[0])}: triangle id {int(a[bad[0]])} is "
+                         f"outside 0..{n - 1}")
+    return as_mask(a, n)
 
 
 def centroids(mesh: Mesh) -> NDArray[np.float64]:

@@ -1,24 +1,37 @@
-"""``qdrefine refine IN OUT``: refine every triangle of a mesh file and write the result."""
+"""``qdrefine refine IN OUT``: refine every triangle of a mesh file, or only marked ones."""
 
 from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 
+import numpy as np
+from numpy.typing import NDArray
+
+from ..adaptive import KEEP, Families, refine_step
 from ..io import read, write
+from ..marking import mark_box, mark_file, mark_tag
+from ..memory import check_memory
+from ..mesh import Mesh
+from ..quality import angles
 from ..refine import refine
 from ..schemes import get_scheme, scheme_names
 from . import _common
 
-HELP = "refine every triangle of a mesh file with a seven-triangle (or 4T) scheme"
+HELP = "refine every triangle of a mesh file, or only marked ones, with a 7T (or 4T) scheme"
+
+#: ``mark(mesh, parents) -> (M,) bool``; ``parents`` maps ``mesh`` to the input mesh.
+Marker = Callable[[Mesh, NDArray[np.int64]], NDArray[np.bool_]]
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:
     _common.setup(parser)
     parser.epilog = ("Formats follow the extensions (.msh, .vtk, .vtu, .xdmf, .mesh, .off, "
                      ".obj, .stl, .ply, Triangle's .node/.ele/.poly). Cell tags are inherited "
-                     "and each tagged edge is split with its tag. Example: qdrefine refine "
-                     "in.msh out.msh --levels 2")
+                     "and each tagged edge is split with its tag. Examples: qdrefine refine "
+                     "in.msh out.msh --levels 2; qdrefine refine in.msh out.msh --mark-box "
+                     "0,0,0.1,0.1 --cycles 5")
     parser.add_argument("input", metavar="IN", help="mesh file to read (never modified)")
     parser.add_argument("output", metavar="OUT",
                         help="mesh file to write (written atomically; .msh is Gmsh 2.2)")
@@ -27,27 +40,132 @@ def add_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--binary", action="store_true",
                         help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply "
                              "(much faster for large meshes)")
-    parser.add_argument("--levels", type=_common.non_negative, default=1, metavar="N",
-                        help="how many times to refine (default 1; 7T schemes multiply the "
-                             "triangles by 7 per level)")
+    parser.add_argument("--levels", type=_common.non_negative, default=None, metavar="N",
+                        help="refine every triangle N times (default 1; 7T schemes multiply "
+                             "the triangles by 7 per level); not with a mark")
+    local = parser.add_argument_group(
+        "local refinement", "Refine only marked triangles (and a conforming closure around "
+        "them); transitions are coarsened before a later cycle refines them "
+        "(docs/adaptive.md).")
+    mark = local.add_mutually_exclusive_group()
+    mark.add_argument("--mark-tag", type=_tags, metavar="T[,T...]",
+                      help="mark the triangles with these cell tags")
+    mark.add_argument("--mark-box", type=_box, metavar="x0,y0,x1,y1",
+                      help="mark the triangles that meet this closed box (write "
+                           "--mark-box=-1,-1,0,0 when x0 is negative)")
+    mark.add_argument("--mark-file", metavar="F",
+                      help="mark the triangles listed in F: ids of IN's triangles (0-based, "
+                           "whitespace separated, '#' comments), or a .npy file of ids or "
+                           "of a boolean mask; with --cycles, each cycle marks everything "
+                           "inside them again")
+    local.add_argument("--cycles", type=_common.non_negative, default=None, metavar="K",
+                       help="mark and refine K times (default 1); tags and boxes are "
+                            "re-evaluated on each cycle's mesh")
 
 
 def run(args: argparse.Namespace) -> int:
     with _common.session():
         get_scheme(args.scheme)  # an unknown name fails here, before any file is read
+        steps = _check_options(args)
         _common.check_output(args.output, (args.input,), binary=args.binary)
         start = time.perf_counter()
-        with _common.Progress(args.levels + 2, args.quiet) as progress:
+        with _common.Progress(steps + 2, args.quiet) as progress:
             progress.step(f"reading {args.input}")
             mesh = read(args.input)
-            n0 = mesh.n_triangles
-            for level in range(1, args.levels + 1):
-                progress.step(f"refining, level {level}/{args.levels}")
-                mesh = refine(mesh, args.scheme)
+            fine, summary = _refiner(args)(mesh, args, progress)
             progress.step(f"writing {args.output}")
-            write(args.output, mesh, binary=args.binary or None)
+            write(args.output, fine, binary=args.binary or None)
         if not args.quiet:
-            print(f"{args.output}: {mesh.n_triangles} triangles, {mesh.n_points} points "
-                  f"({n0} triangles refined by {args.scheme}, {args.levels} level"
-                  f"{'s' if args.levels != 1 else ''}, {time.perf_counter() - start:.2f} s)")
+            print(f"{args.output}: {fine.n_triangles} triangles, {fine.n_points} points "
+                  f"({summary}, {time.perf_counter() - start:.2f} s)")
     return 0
+
+
+def _check_options(args: argparse.Namespace) -> int:
+    """Option combinations argparse cannot express; returns the number of refinements."""
+    marked = any(v is not None for v in (args.mark_tag, args.mark_box, args.mark_file))
+    if args.cycles is not None and not marked:
+        raise ValueError("--cycles needs a mark: --mark-tag, --mark-box or --mark-file")
+    if args.levels is not None and marked:
+        raise ValueError("--levels refines every triangle; with a mark use --cycles")
+    value = args.cycles if marked else args.levels
+    return 1 if value is None else value
+
+
+def _refiner(args: argparse.Namespace):
+    """The refinement path for these options: ``f(mesh, args, progress) -> (mesh, text)``."""
+    if any(v is not None for v in (args.mark_tag, args.mark_box, args.mark_file)):
+        return _local
+    return _uniform
+
+
+def _uniform(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress
+             ) -> tuple[Mesh, str]:
+    levels = 1 if args.levels is None else args.levels
+    check_memory(mesh, args.scheme, levels)  # all levels, before the first one allocates
+    n0 = mesh.n_triangles
+    for level in range(1, levels + 1):
+        progress.step(f"refining, level {level}/{levels}")
+        mesh = refine(mesh, args.scheme)
+    return mesh, (f"{n0} triangles refined by {args.scheme}, {levels} level"
+                  f"{'s' if levels != 1 else ''}")
+
+
+def _local(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress
+           ) -> tuple[Mesh, str]:
+    """``--cycles`` rounds of mark, coarsen transitions, refine (fixed quality floor)."""
+    cycles = 1 if args.cycles is None else args.cycles
+    mark = _marker(mesh, args)
+    floor = KEEP * float(angles(mesh.points, mesh.triangles).min())
+    fam = Families.empty(mesh.n_triangles, get_scheme(args.scheme).stencil.per_edge)
+    parents = np.arange(mesh.n_triangles, dtype=np.int64)
+    n0, n_marked = mesh.n_triangles, 0
+    for cycle in range(1, cycles + 1):
+        progress.step(f"refining, cycle {cycle}/{cycles}")
+        marked = mark(mesh, parents)
+        n_marked += int(marked.sum())
+        mesh, step, fam = refine_step(mesh, marked, args.scheme, floor, fam)
+        parents = parents[step]
+    return mesh, (f"{n_marked} triangles marked, {mesh.n_triangles - n0} added by "
+                  f"{args.scheme} in {cycles} cycle{'s' if cycles != 1 else ''}")
+
+
+def _marker(mesh: Mesh, args: argparse.Namespace) -> Marker:
+    """The marking rule of the options, checked on the input mesh."""
+    if args.mark_tag is not None:
+        known = np.unique(mesh.cell_tags) if mesh.cell_tags is not None else []
+        missing = sorted(set(args.mark_tag) - set(np.asarray(known).tolist()))
+        if missing:
+            raise ValueError(f"{args.input}: no triangle has cell tag {missing[0]} (cell "
+                             f"tags: {', '.join(map(str, known)) or 'none'})")
+        return lambda m, _: mark_tag(m, args.mark_tag)
+    if args.mark_box is not None:
+        if not mark_box(mesh, args.mark_box).any():
+            raise ValueError(f"{args.input}: the box {','.join(map(str, args.mark_box))} "
+                             "meets no triangle")
+        return lambda m, _: mark_box(m, args.mark_box)
+    first = mark_file(mesh, args.mark_file)
+    return lambda _, parents: first[parents]
+
+
+def _tags(text: str) -> list[int]:
+    """argparse type: ``T[,T...]`` integers."""
+    try:
+        return [int(t) for t in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected integer cell tags like 1 or 1,2; got "
+                                         f"{text!r}") from None
+
+
+def _box(text: str) -> tuple[float, float, float, float]:
+    """argparse type: ``x0,y0,x1,y1`` with ``x0 <= x1`` and ``y0 <= y1``."""
+    words = text.split(",")
+    try:
+        box = tuple(float(w) for w in words)
+    except ValueError:
+        box = ()
+    if len(box) != 4 or not np.isfinite(box).all():
+        raise argparse.ArgumentTypeError(f"expected four numbers x0,y0,x1,y1; got {text!r}")
+    if box[0] > box[2] or box[1] > box[3]:
+        raise argparse.ArgumentTypeError(f"expected x0 <= x1 and y0 <= y1; got {text!r}")
+    return box  # type: ignore[return-value]

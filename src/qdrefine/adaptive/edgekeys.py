@@ -1,0 +1,39 @@
+"""Integer keys of edges (pairs of point ids) and the sorted registry of split edges."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+#: Edge key ``min * KEY + max`` of an edge between two point ids (ids below ``2**31``).
+KEY = np.int64(1) << np.int64(32)
+
+
+def edge_keys(a: ArrayLike, b: ArrayLike) -> NDArray[np.int64]:
+    """Keys of the edges ``(a, b)`` (either orientation), same shape as ``a`` and ``b``."""
+    a = np.asarray(a, dtype=np.int64)
+    b = np.asarray(b, dtype=np.int64)
+    return np.minimum(a, b) * KEY + np.maximum(a, b)
+
+
+def lookup(keys: NDArray[np.int64], query: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Position of each query in the sorted ``keys``, ``-1`` where absent."""
+    if keys.size == 0:
+        return np.full(query.shape, -1, dtype=np.int64)
+    pos = np.minimum(np.searchsorted(keys, query), keys.size - 1)
+    return np.where(keys[pos] == query, pos, -1)
+
+
+def oriented(pts: NDArray[np.int64], a: NDArray, b: NDArray) -> NDArray[np.int64]:
+    """Points ``(K, k)`` of the edges ``(a, b)`` listed from the lower id, relisted from
+    ``a`` (and back: reversing where ``a > b`` is its own inverse)."""
+    return np.where((a < b)[:, None], pts, pts[:, ::-1])
+
+
+def register(keys: NDArray[np.int64], pts: NDArray[np.int64], new_keys: NDArray[np.int64],
+             new_pts: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The registry ``keys (R,)`` (sorted), ``pts (R, k)`` with edges that are not in it
+    yet added: ``new_keys (N,)`` with their points ``new_pts (N, k)``."""
+    keys = np.concatenate([keys, new_keys])
+    order = np.argsort(keys, kind="stable")
+    return keys[order], np.concatenate([pts, new_pts])[order]

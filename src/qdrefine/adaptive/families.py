@@ -1,0 +1,103 @@
+"""Transition families: what a later cycle needs to coarsen a transition before refining."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .edgekeys import edge_keys, oriented
+from .labels import split_codes
+
+
+@dataclass(frozen=True, eq=False)
+class Families:
+    """Transition ("green") families of a mesh: the children of each transition pattern,
+    grouped by the triangle they replace. :func:`~qdrefine.adaptive.refine_step` takes and
+    returns them; :func:`~qdrefine.adaptive.refine_cycles` carries them from one cycle to
+    the next.
+
+    Parameters
+    ----------
+    member : (M,) int64
+        Family of each triangle, ``-1`` for triangles that are not transition children.
+        The members of a family are consecutive rows (as ``refine_step`` emits them).
+    rows : (F, 3) int64
+        Each family's parent triangle: its vertex row, counter-clockwise.
+    stencil : (F, 3 + 3k) int64
+        The parent's canonical vertices ``M, N, O``, then the ``k`` points of ``MN``,
+        ``NO`` and ``OM`` (listed from ``M``, ``N``, ``O``), ``-1`` on unsplit edges.
+    """
+
+    member: NDArray[np.int64]
+    rows: NDArray[np.int64]
+    stencil: NDArray[np.int64]
+
+    def __post_init__(self) -> None:
+        member = np.asarray(self.member, dtype=np.int64)
+        rows = np.asarray(self.rows, dtype=np.int64).reshape(-1, 3)
+        stencil = np.asarray(self.stencil, dtype=np.int64)
+        f = rows.shape[0]
+        if member.ndim != 1:
+            raise ValueError(f"families: member must be one-dimensional, got {member.shape}")
+        if stencil.shape not in ((f, 6), (f, 9)):
+            raise ValueError(f"families: stencil must have shape ({f}, 6) or ({f}, 9), got "
+                             f"{stencil.shape}")
+        if member.size and (member.min() < -1 or member.max() >= f):
+            raise ValueError(f"families: member ids must be in -1..{f - 1}")
+        for name, value in (("member", member), ("rows", rows), ("stencil", stencil)):
+            value.flags.writeable = False
+            object.__setattr__(self, name, value)
+        count = self.counts()
+        idx = np.flatnonzero(member >= 0)
+        last = np.full(f, -1, dtype=np.int64)
+        np.maximum.at(last, member[idx], idx)
+        if ((count < 2) | (last - self.first() + 1 != count)).any():
+            bad = int(np.flatnonzero((count < 2) | (last - self.first() + 1 != count))[0])
+            raise ValueError(f"families: family {bad} does not have two or more consecutive "
+                             "members")
+
+    @classmethod
+    def empty(cls, n_triangles: int, per_edge: int) -> Families:
+        """No transition children among ``n_triangles``."""
+        return cls(np.full(n_triangles, -1, dtype=np.int64), np.empty((0, 3), np.int64),
+                   np.empty((0, 3 + 3 * per_edge), np.int64))
+
+    @property
+    def per_edge(self) -> int:
+        return (self.stencil.shape[1] - 3) // 3
+
+    @property
+    def n_families(self) -> int:
+        return int(self.rows.shape[0])
+
+    def counts(self) -> NDArray[np.int64]:
+        """Members per family ``(F,)``."""
+        return np.bincount(self.member[self.member >= 0], minlength=self.n_families)
+
+    def first(self) -> NDArray[np.int64]:
+        """First member of each family ``(F,)``."""
+        first = np.full(self.n_families, self.member.size, dtype=np.int64)
+        idx = np.flatnonzero(self.member >= 0)
+        np.minimum.at(first, self.member[idx], idx)
+        return first
+
+    def codes(self) -> NDArray[np.int64]:
+        """Split code of each family's transition (bits ``MN=1, NO=2, OM=4``)."""
+        k = self.per_edge
+        return split_codes(self.stencil[:, [3, 3 + k, 3 + 2 * k]] >= 0)
+
+    def registry(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Split edges of the parents: sorted keys ``(R,)`` and their points ``(R, k)``,
+        listed from the lower point id."""
+        k = self.per_edge
+        keys, pts = [], []
+        for e in range(3):
+            a, b = self.stencil[:, e], self.stencil[:, (e + 1) % 3]
+            p = self.stencil[:, 3 + k * e: 3 + k * (e + 1)]
+            ok = p[:, 0] >= 0
+            keys.append(edge_keys(a[ok], b[ok]))
+            pts.append(oriented(p[ok], a[ok], b[ok]))
+        keys_, first = np.unique(np.concatenate(keys), return_index=True)
+        return keys_, np.concatenate(pts).reshape(-1, k)[first]

@@ -1,0 +1,171 @@
+"""``qdrefine refine`` with marks (--mark-tag, --mark-box, --mark-file, --cycles), through
+the real entry point, compared with the Python API."""
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import qdrefine
+from qdrefine.adaptive import KEEP, Families, refine_step
+from qdrefine.marking import mark_box, mark_tag
+from qdrefine.quality import areas, min_angles
+from qdrefine.topology import conformity
+
+DATA = Path(__file__).parent / "data"
+SRC = DATA / "two_regions_22.msh"
+
+
+def cli(*args):
+    """Run ``python -m qdrefine ARGS`` and return the result."""
+    return subprocess.run([sys.executable, "-m", "qdrefine", *map(str, args)],
+                          capture_output=True, text=True, check=False)
+
+
+def api(mesh, mark, cycles=1, scheme="7t-qd"):
+    """What the command should do: ``mark(mesh, parents)`` then :func:`refine_step`, with
+    the floor fixed on the input; returns the mesh and the number of marked triangles."""
+    floor = KEEP * min_angles(mesh).min()
+    fam = Families.empty(mesh.n_triangles, qdrefine.get_scheme(scheme).stencil.per_edge)
+    parents = np.arange(mesh.n_triangles)
+    total = 0
+    for _ in range(cycles):
+        marked = mark(mesh, parents)
+        total += int(marked.sum())
+        mesh, step, fam = refine_step(mesh, marked, scheme, floor, fam)
+        parents = parents[step]
+    return mesh, total
+
+
+def summary(stdout):
+    """``(triangles, marked, added, cycles)`` from the summary line."""
+    m = re.fullmatch(r"\S+: (\d+) triangles, \d+ points \((\d+) triangles marked, (\d+) "
+                     r"added by 7t-qd in (\d+) cycles? ?, [\d.]+ s\)\n", stdout)
+    assert m, stdout
+    return tuple(int(g) for g in m.groups())
+
+
+def same_mesh(a, b):
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.triangles, b.triangles)
+    np.testing.assert_array_equal(a.cell_tags, b.cell_tags)
+    np.testing.assert_array_equal(a.edges, b.edges)
+    np.testing.assert_array_equal(a.edge_tags, b.edge_tags)
+
+
+def test_mark_tag_refines_that_region_and_keeps_every_tag(tmp_path):
+    out = tmp_path / "fine.msh"
+    result = cli("refine", SRC, out, "--mark-tag", "2", "--cycles", "2")
+    assert result.returncode == 0, result.stderr
+    coarse, fine = qdrefine.read(SRC), qdrefine.read(out)
+    expected, marked = api(coarse, lambda m, _: mark_tag(m, 2), cycles=2)
+    same_mesh(fine, qdrefine.read(_roundtrip(tmp_path, expected)))
+    assert summary(result.stdout) == (fine.n_triangles, marked,
+                                      fine.n_triangles - coarse.n_triangles, 2)
+    assert conformity(fine).ok
+    for tag in (1, 2):
+        assert areas(fine)[fine.cell_tags == tag].sum() == pytest.approx(
+            areas(coarse)[coarse.cell_tags == tag].sum(), rel=1e-13)
+    # region 2 is refined twice everywhere: 49 times as many triangles at least
+    assert (fine.cell_tags == 2).sum() >= 49 * (coarse.cell_tags == 2).sum()
+    assert sorted(set(fine.edge_tags.tolist())) == sorted(set(coarse.edge_tags.tolist()))
+
+
+def _roundtrip(tmp_path, mesh):
+    path = tmp_path / "expected.msh"
+    qdrefine.write(path, mesh)
+    return path
+
+
+def test_mark_box_is_evaluated_on_each_cycle(tmp_path):
+    out = tmp_path / "fine.vtu"
+    box = (0.0, 0.0, 0.1, 0.1)
+    result = cli("refine", SRC, out, "--mark-box", "0,0,0.1,0.1", "--cycles", "3", "--quiet")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == ""
+    coarse, fine = qdrefine.read(SRC), qdrefine.read(out)
+    expected, _ = api(coarse, lambda m, _: mark_box(m, box), cycles=3)
+    np.testing.assert_array_equal(fine.triangles, expected.triangles)
+    # refined three times at the corner: areas there at least 3^3 times smaller (a 7T
+    # child holds at most a third of its parent's area)
+    near = mark_box(fine, box)
+    assert areas(fine)[near].max() <= areas(coarse)[mark_box(coarse, box)].min() / 27
+    assert conformity(fine).ok
+
+
+def test_mark_file_text_and_npy_agree(tmp_path):
+    coarse = qdrefine.read(SRC)
+    ids = [3, 17, 40, 41]
+    (tmp_path / "ids.txt").write_text("# triangles to refine\n3 17\n\n40\t41  # last two\n")
+    np.save(tmp_path / "ids.npy", np.array(ids))
+    mask = np.zeros(coarse.n_triangles, bool)
+    mask[ids] = True
+    np.save(tmp_path / "mask.npy", mask)
+    outs = []
+    for name in ("ids.txt", "ids.npy", "mask.npy"):
+        out = tmp_path / f"{name}.msh"
+        result = cli("refine", SRC, out, "--mark-file", tmp_path / name)
+        assert result.returncode == 0, result.stderr
+        assert summary(result.stdout)[1:] == (4, qdrefine.read(out).n_triangles
+                                              - coarse.n_triangles, 1)
+        outs.append(qdrefine.read(out))
+    same_mesh(outs[0], outs[1])
+    same_mesh(outs[0], outs[2])
+    expected, _ = api(coarse, lambda m, _: mask)
+    same_mesh(outs[0], qdrefine.read(_roundtrip(tmp_path, expected)))
+
+
+def test_mark_file_cycles_refine_inside_the_listed_triangles_again(tmp_path):
+    coarse = qdrefine.read(SRC)
+    (tmp_path / "ids.txt").write_text("5\n")
+    out = tmp_path / "fine.msh"
+    result = cli("refine", SRC, out, "--mark-file", tmp_path / "ids.txt", "--cycles", "2")
+    assert result.returncode == 0, result.stderr
+    fine = qdrefine.read(out)
+    mask = np.zeros(coarse.n_triangles, bool)
+    mask[5] = True
+    expected, marked = api(coarse, lambda m, parents: mask[parents], cycles=2)
+    same_mesh(fine, qdrefine.read(_roundtrip(tmp_path, expected)))
+    assert marked == 1 + 7  # the triangle, then its seven children
+    assert summary(result.stdout)[1] == marked
+
+
+def test_uniform_refinement_is_unchanged(tmp_path):
+    out = tmp_path / "u.msh"
+    result = cli("refine", SRC, out, "--levels", "1")
+    assert result.returncode == 0, result.stderr
+    assert "triangles refined by 7t-qd, 1 level," in result.stdout
+    assert qdrefine.read(out).n_triangles == 7 * qdrefine.read(SRC).n_triangles
+
+
+@pytest.mark.parametrize("extra, code, message", [
+    (["--mark-box", "1,2,3"], 2, "expected four numbers x0,y0,x1,y1; got '1,2,3'"),
+    (["--mark-box", "a,b,c,d"], 2, "expected four numbers"),
+    (["--mark-box", "1,1,0,0"], 2, "expected x0 <= x1 and y0 <= y1"),
+    (["--mark-box", "5,5,6,6"], 1, "the box 5.0,5.0,6.0,6.0 meets no triangle"),
+    (["--mark-tag", "99"], 1, "no triangle has cell tag 99 (cell tags: 1, 2)"),
+    (["--mark-tag", "one"], 2, "expected integer cell tags"),
+    (["--mark-file", "{tmp}/range.txt"], 1, "range.txt, line 2: triangle id 9999 is outside"),
+    (["--mark-file", "{tmp}/word.txt"], 1, "word.txt, line 1: 'x7' is not a triangle id"),
+    (["--mark-file", "{tmp}/missing.txt"], 1, "missing.txt: no such file"),
+    (["--mark-file", "{tmp}/short.npy"], 1, "short.npy: a boolean mask needs shape"),
+    (["--mark-file", "{tmp}/neg.npy"], 1, "neg.npy, entry 1: triangle id -2 is outside"),
+    (["--mark-tag", "1", "--mark-box", "0,0,1,1"], 2, "not allowed with argument"),
+    (["--cycles", "2"], 1, "--cycles needs a mark"),
+    (["--mark-tag", "1", "--levels", "2"], 1, "with a mark use --cycles"),
+    (["--mark-tag", "1", "--cycles", "-1"], 2, "expected a number >= 0"),
+])
+def test_bad_marks_give_one_line_and_no_output(tmp_path, extra, code, message):
+    (tmp_path / "range.txt").write_text("1 2\n9999\n")
+    (tmp_path / "word.txt").write_text("1 x7\n")
+    np.save(tmp_path / "short.npy", np.ones(3, bool))
+    np.save(tmp_path / "neg.npy", np.array([0, -2]))
+    out = tmp_path / "out.msh"
+    result = cli("refine", SRC, out, *[a.format(tmp=tmp_path) for a in extra])
+    assert result.returncode == code, result.stderr
+    assert result.stderr.startswith("qdrefine: error: "), result.stderr
+    assert message in result.stderr and result.stderr.count("\n") == 1, result.stderr
+    assert result.stdout == "" and not out.exists()
