@@ -18,7 +18,8 @@ __all__ = ["main", "COMMANDS"]
 
 #: Subcommands in the order ``--help`` lists them (module ``qdrefine.cli.<name>``).
 COMMANDS: tuple[str, ...] = (
-    "refine", "check", "info", "quality", "plot", "compare", "demo", "diagram", "paper",
+    "refine", "check", "info", "quality", "plot", "compare", "convert", "demo", "diagram",
+    "paper",
 )
 
 

@@ -14,6 +14,9 @@ from typing import Any
 
 from ..io import FORMATS, atomic_path
 
+#: Extension of a chunked Zarr mesh store (:mod:`qdrefine.store`).
+STORE = ".zarr"
+
 #: Picture formats the commands can save (matplotlib's names).
 PICTURES = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
 
@@ -78,9 +81,18 @@ def _key(path: Path) -> Path:
 
 def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
                  binary: bool = False) -> Path:
-    """Fail early (before any long work) when ``path`` cannot be written."""
+    """Fail early (before any long work) when ``path`` cannot be written.
+
+    ``kinds``: ``"mesh"`` (a mesh file), ``"store"`` (a ``.zarr`` mesh store), ``"any"``
+    (either) or ``"picture"``.
+    """
     out = Path(path)
-    if kinds == "mesh":
+    if kinds in ("store", "any") and out.suffix.lower() == STORE:
+        if binary:
+            raise ValueError(f"{out}: --binary applies to mesh files, not to Zarr stores")
+    elif kinds == "store":
+        raise ValueError(f"{out}: expected a Zarr mesh store (a name ending in {STORE})")
+    elif kinds in ("mesh", "any"):
         if out.suffix.lower() not in FORMATS:
             raise ValueError(f"{out}: unknown mesh format '{out.suffix}'; known extensions: "
                              f"{', '.join(FORMATS)}")
@@ -153,12 +165,14 @@ class Progress:
             self._task = self._bar.add_task("starting", total=self.total)
         return self
 
-    def step(self, text: str) -> None:
+    def step(self, text: str, total: int | None = None) -> None:
+        """Start step ``text``; ``total`` corrects the number of steps when known late."""
         if self._bar is not None:
             if self._started:
                 self._bar.advance(self._task)
             self._started = True
-            self._bar.update(self._task, description=text)
+            self._bar.update(self._task, description=text,
+                             **({} if total is None else {"total": total}))
 
     def __exit__(self, *exc: Any) -> None:
         if self._bar is not None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections.abc import Callable
 
@@ -43,6 +44,11 @@ def add_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--levels", type=_common.non_negative, default=None, metavar="N",
                         help="refine every triangle N times (default 1; 7T schemes multiply "
                              "the triangles by 7 per level); not with a mark")
+    parser.add_argument("--dask", nargs="?", const="", default=None, metavar="ADDRESS",
+                        help="refine the Zarr store IN into the store OUT (names ending in "
+                             ".zarr; see 'qdrefine convert') on Dask: a local cluster sized "
+                             "to the machine, or the scheduler at ADDRESS (tcp://host:8786); "
+                             "uniform refinement only (docs/scale-out.md)")
     local = parser.add_argument_group(
         "local refinement", "Refine only marked triangles (and a conforming closure around "
         "them); transitions are coarsened before a later cycle refines them "
@@ -67,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
     with _common.session():
         get_scheme(args.scheme)  # an unknown name fails here, before any file is read
         steps = _check_options(args)
+        if args.dask is not None:
+            return _on_dask(args)
         _common.check_output(args.output, (args.input,), binary=args.binary)
         start = time.perf_counter()
         with _common.Progress(steps + 2, args.quiet) as progress:
@@ -88,6 +96,8 @@ def _check_options(args: argparse.Namespace) -> int:
         raise ValueError("--cycles needs a mark: --mark-tag, --mark-box or --mark-file")
     if args.levels is not None and marked:
         raise ValueError("--levels refines every triangle; with a mark use --cycles")
+    if args.dask is not None and marked:
+        raise ValueError("--dask refines every triangle; it takes no mark")
     value = args.cycles if marked else args.levels
     return 1 if value is None else value
 
@@ -109,6 +119,34 @@ def _uniform(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress
         mesh = refine(mesh, args.scheme)
     return mesh, (f"{n0} triangles refined by {args.scheme}, {levels} level"
                   f"{'s' if levels != 1 else ''}")
+
+
+def _on_dask(args: argparse.Namespace) -> int:
+    """``--dask``: store to store on a Dask cluster (:func:`qdrefine.distributed.refine_store`)."""
+    from ..distributed import refine_store
+    from ..store import is_store
+
+    if not is_store(args.input):
+        raise ValueError(f"{args.input}: --dask needs a Zarr mesh store as IN; make one with "
+                         f"'qdrefine convert {args.input} IN.zarr'")
+    _common.check_output(args.output, (args.input,), kinds="store", binary=args.binary)
+    levels = 1 if args.levels is None else args.levels
+    with _common.Progress(1, args.quiet) as bar:
+        def progress(text: str, done: int, total: int) -> None:  # noqa: ARG001
+            if text.startswith("dask"):  # the dashboard link (or "cluster ready")
+                if not args.quiet:
+                    print(text, file=sys.stderr)
+            else:
+                bar.step(text, total)
+
+        summary = refine_store(args.input, args.output, args.scheme, levels,
+                               address=args.dask or None, progress=progress)
+    if not args.quiet:
+        print(f"{args.output}: {summary.n_triangles} triangles, {summary.n_points} points "
+              f"({args.scheme}, {levels} level{'s' if levels != 1 else ''} on "
+              f"{summary.n_workers} Dask worker{'s' if summary.n_workers != 1 else ''}, "
+              f"{summary.seconds:.2f} s)")
+    return 0
 
 
 def _local(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress

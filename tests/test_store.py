@@ -1,0 +1,204 @@
+"""The chunked mesh store: round trips, lazy opening, conversions from/to files, bad stores."""
+
+import json
+import os
+import stat
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zarr
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import qdrefine
+from meshes import jittered_grid
+from qdrefine import Mesh, examples, io, store
+
+FIELDS = ("points", "triangles", "cell_tags", "edges", "edge_tags")
+
+
+def same_mesh(a: Mesh, b: Mesh) -> None:
+    for name in FIELDS:
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            assert x.dtype == y.dtype, name
+            np.testing.assert_array_equal(x, y, err_msg=name)
+
+
+@settings(max_examples=20, deadline=None)
+@given(n=st.integers(1, 6), seed=st.integers(0, 10**6), chunk=st.integers(1, 80),
+       tags=st.booleans())
+def test_create_open_to_mesh_round_trip(tmp_path_factory, n, seed, chunk, tags):
+    mesh = jittered_grid(n, seed)
+    if not tags:
+        mesh = Mesh(mesh.points, mesh.triangles)
+    path = tmp_path_factory.mktemp("s") / "m.zarr"
+    s = store.create(path, mesh, chunk_size=chunk)
+    assert (s.n_points, s.n_triangles) == (mesh.n_points, mesh.n_triangles)
+    assert s.n_edges == (0 if mesh.edges is None else len(mesh.edges))
+    assert all(c <= chunk for c in s.triangles.chunks[0]) and s.triangles.chunks[0][0] == min(
+        chunk, mesh.n_triangles)
+    same_mesh(mesh, store.to_mesh(path))
+    same_mesh(mesh, s.to_mesh())
+
+
+def test_open_is_lazy_and_keeps_metadata(tmp_path):
+    mesh = examples.plate_with_hole()
+    store.create(tmp_path / "p.zarr", mesh, chunk_size=100, metadata={"case": "plate"})
+    s = store.open(tmp_path / "p.zarr")
+    assert s.triangles.chunks[0] == (100, 100, 100, 84)
+    assert s.points.dtype == np.float64 and s.cell_tags.dtype == np.int64
+    assert s.metadata == {"case": "plate"}
+    assert s.chunk_size == 100
+    np.testing.assert_array_equal(s.triangles[250:260].compute(), mesh.triangles[250:260])
+    assert "384 triangles" in repr(s)
+
+
+def test_existing_store_is_replaced_and_permissions_are_normal(tmp_path):
+    path = tmp_path / "m.zarr"
+    store.create(path, jittered_grid(3, 1))
+    store.create(path, examples.square(2))
+    same_mesh(examples.square(2), store.to_mesh(path))
+    assert [p.name for p in tmp_path.iterdir()] == ["m.zarr"]  # no temporary left
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o777 & ~umask
+
+
+def test_create_refuses_to_replace_what_is_not_a_store(tmp_path):
+    (tmp_path / "data").mkdir()
+    (tmp_path / "data" / "keep.txt").write_text("mine")
+    with pytest.raises(FileExistsError, match="not a qdrefine mesh store"):
+        store.create(tmp_path / "data", examples.square(2))
+    assert (tmp_path / "data" / "keep.txt").read_text() == "mine"
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        store.create(tmp_path / "nowhere" / "m.zarr", examples.square(2))
+    with pytest.raises(ValueError, match="chunk_size must be a positive integer"):
+        store.create(tmp_path / "m.zarr", examples.square(2), chunk_size=0)
+    with pytest.raises(TypeError, match="needs a Mesh"):
+        store.create(tmp_path / "m.zarr", np.zeros((3, 2)))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data"]
+
+
+@pytest.mark.parametrize("ext", list(io.FORMATS))
+def test_from_file_and_to_file_for_every_format(tmp_path, ext):
+    mesh = jittered_grid(5, seed=2)  # shuffled, cell tags 0/1, edge tags 1..4
+    tagged = io.FORMATS[ext].tags
+    if not tagged:
+        mesh = Mesh(mesh.points, mesh.triangles)
+    qdrefine.write(tmp_path / f"in{ext}", mesh)
+    s = store.from_file(tmp_path / f"in{ext}", tmp_path / "m.zarr", chunk_size=7)
+    assert s.metadata["source"] == str(tmp_path / f"in{ext}")
+    expected = qdrefine.read(tmp_path / f"in{ext}")
+    same_mesh(expected, store.to_mesh(s))
+    store.to_file(s, tmp_path / f"out{ext}")
+    back = qdrefine.read(tmp_path / f"out{ext}")
+    if ext == ".stl":  # float32 coordinates and merged points: compare the sizes only
+        assert back.n_triangles == expected.n_triangles
+    else:
+        same_mesh(expected, back)
+
+
+@pytest.mark.parametrize("name,binary", [("m.msh", False), ("m.msh", True), ("m.node", None),
+                                         ("m.ele", None), ("m.poly", None)])
+def test_streaming_export_reads_chunks_and_equals_write(tmp_path, monkeypatch, name, binary):
+    mesh = jittered_grid(6, seed=4)
+    s = store.create(tmp_path / "m.zarr", mesh, chunk_size=5)
+    reads = []
+    original = store._rows
+
+    def counting(s_, array, step=None):
+        for start, rows in original(s_, array, step):
+            reads.append(len(rows))
+            yield start, rows
+
+    monkeypatch.setattr(store, "to_mesh", lambda *a: pytest.fail("loaded the whole mesh"))
+    monkeypatch.setattr(store, "_rows", counting)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        store.to_file(s, tmp_path / name, binary=binary)
+    assert max(reads) == 5
+    same_mesh(mesh, qdrefine.read(tmp_path / name))
+    if not name.endswith(".msh"):  # Triangle files: the very bytes qdrefine.write writes
+        qdrefine.write(tmp_path / "ref.node", mesh)
+        for ext in (".node", ".ele", ".poly"):
+            ours = (tmp_path / "m").with_suffix(ext).read_bytes()
+            assert ours == (tmp_path / "ref").with_suffix(ext).read_bytes()
+
+
+def test_streaming_export_of_an_untagged_mesh_and_tag_zero(tmp_path):
+    mesh = Mesh([[0, 0], [1, 0], [0, 1], [1, 1]], [[0, 1, 2], [1, 3, 2]])
+    store.to_file(store.create(tmp_path / "a.zarr", mesh), tmp_path / "a.msh", binary=True)
+    same_mesh(mesh, qdrefine.read(tmp_path / "a.msh"))
+    zero = Mesh(mesh.points, mesh.triangles, edges=[[0, 1]], edge_tags=[0])
+    with pytest.warns(UserWarning, match="tag 0"):
+        store.to_file(store.create(tmp_path / "b.zarr", zero), tmp_path / "b.node")
+    with pytest.raises(ValueError, match="no binary variant"):
+        store.to_file(tmp_path / "b.zarr", tmp_path / "b.node", binary=True)
+
+
+# bad stores ---------------------------------------------------------------------------------
+
+
+def _raw(path: Path, arrays: dict, version=1) -> Path:
+    """A Zarr group written without qdrefine's checks."""
+    group = zarr.create_group(store=str(path), attributes={
+        "qdrefine": {"format": "mesh", "version": version, "metadata": {}}})
+    for name, value in arrays.items():
+        group.create_array(name, data=np.asarray(value))
+    return path
+
+
+GOOD = {"points": np.array([[0.0, 0], [1, 0], [0, 1]]), "triangles": np.array([[0, 1, 2]])}
+
+
+def test_open_names_what_is_wrong(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no such mesh store"):
+        store.open(tmp_path / "missing.zarr")
+    (tmp_path / "plain").mkdir()
+    with pytest.raises(ValueError, match="plain: not a mesh store"):
+        store.open(tmp_path / "plain")
+    (tmp_path / "file.zarr").write_text("x")
+    with pytest.raises(ValueError, match="file.zarr: not a mesh store"):
+        store.open(tmp_path / "file.zarr")
+    zarr.create_group(store=str(tmp_path / "other.zarr"))
+    with pytest.raises(ValueError, match="without the 'qdrefine' attribute"):
+        store.open(tmp_path / "other.zarr")
+    with pytest.raises(ValueError, match="version 9 is not supported"):
+        store.open(_raw(tmp_path / "v9.zarr", GOOD, version=9))
+    assert not store.is_store(tmp_path / "plain") and store.is_store(_raw(tmp_path / "ok.zarr",
+                                                                          GOOD))
+
+
+@pytest.mark.parametrize("change,message", [
+    ({"triangles": None}, "no 'triangles' array"),
+    ({"points": np.zeros((3, 3))}, "'points' has shape \\(3, 3\\)"),
+    ({"points": np.zeros((3, 2), dtype=np.float32)}, "'points' has dtype float32"),
+    ({"triangles": np.array([[0.0, 1, 2]])}, "'triangles' has dtype float64"),
+    ({"triangles": np.zeros((0, 3), dtype=np.int64)}, "has no triangles"),
+    ({"cell_tags": np.array([1, 2])}, "'cell_tags' has 2 rows, 'triangles' 1"),
+    ({"edges": np.array([[0, 1]])}, "'edges' and 'edge_tags' must be stored together"),
+    ({"edges": np.array([[0, 1]]), "edge_tags": np.array([1, 1])}, "'edges' has 1 rows"),
+])
+def test_open_refuses_malformed_arrays(tmp_path, change, message):
+    arrays = {k: v for k, v in {**GOOD, **change}.items() if v is not None}
+    with pytest.raises(ValueError, match=message):
+        store.open(_raw(tmp_path / "bad.zarr", arrays))
+
+
+def test_to_mesh_validates_the_content(tmp_path):
+    path = _raw(tmp_path / "cw.zarr", {**GOOD, "triangles": np.array([[0, 2, 1]])})
+    store.open(path)  # opening is lazy: the content is not read
+    with pytest.raises(ValueError, match="cw.zarr: triangle 0 .* clockwise"):
+        store.to_mesh(path)
+
+
+def test_store_layout_is_documented(tmp_path):
+    store.create(tmp_path / "m.zarr", jittered_grid(2, 0), chunk_size=4)
+    meta = json.loads((tmp_path / "m.zarr" / "zarr.json").read_text())
+    assert meta["attributes"]["qdrefine"] == {"format": "mesh", "version": 1, "metadata": {}}
+    names = sorted(p.name for p in (tmp_path / "m.zarr").iterdir() if p.is_dir())
+    assert names == sorted(FIELDS)
