@@ -74,3 +74,13 @@ def test_dask_needs_stores_and_no_marks(tmp_path, capsys):
         assert code == 1 and err.startswith("qdrefine: error: ") and message in err, err
         assert err.count("\n") == 1
         assert not (tmp_path / dst).exists()
+
+
+def test_missing_optional_package_is_one_line(tmp_path, capsys, monkeypatch):
+    qdrefine.write(tmp_path / "in.msh", examples.square(2))
+    monkeypatch.setitem(sys.modules, "zarr", None)  # import zarr now fails
+    assert main(["convert", str(tmp_path / "in.msh"), str(tmp_path / "in.zarr")]) == 1
+    err = capsys.readouterr().err
+    assert err == ("qdrefine: error: this needs the optional package 'zarr': "
+                   "pip install 'qdrefine[dask]'\n")
+    assert not (tmp_path / "in.zarr").exists()

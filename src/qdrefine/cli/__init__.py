@@ -23,6 +23,11 @@ COMMANDS: tuple[str, ...] = (
 )
 
 
+#: Top-level packages of optional extras, and the extra that installs each.
+OPTIONAL = {"dask": "dask", "distributed": "dask", "zarr": "dask", "scipy": "paper",
+            "sympy": "paper"}
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="qdrefine",
@@ -51,6 +56,13 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     except (ValueError, OSError, MemoryError) as exc:
         print(f"qdrefine: error: {_one_line(exc)}", file=sys.stderr)
+        return 1
+    except ModuleNotFoundError as exc:  # an optional extra that is not installed
+        if exc.name is None or exc.name.split(".")[0] not in OPTIONAL:
+            raise
+        top = exc.name.split(".")[0]
+        print(f"qdrefine: error: this needs the optional package '{top}': "
+              f"pip install 'qdrefine[{OPTIONAL[top]}]'", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("qdrefine: interrupted", file=sys.stderr)
