@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from oracle import exact, orient
-from qdrefine.predicates import form_sign, new_scratch, orient_sign
+from qdrefine.predicates import form_sign, new_scratch, orient_sign, orient_signs
 from shapes import coordinate
 
 points = st.tuples(coordinate, coordinate)
@@ -57,3 +57,17 @@ def test_exact_tie_of_squared_lengths():
     assert form_sign(*a, *b, *c, 1.0, -1.0, 0.0, buf) == expected
     assert form_sign(0.0, 0.0, 3.0, 4.0, 5.0, 0.0, 1.0, -1.0, 0.0, buf) == 0
     assert Fraction(0) == 0
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(points, points, points), min_size=1, max_size=20))
+def test_orient_signs_matches_orient_sign(tris):
+    """The vectorized orientation (inline filter) agrees with the exact oracle, collinear
+    triples included."""
+    pts = np.array([p for t in tris for p in t], dtype=np.float64)
+    idx = np.arange(len(pts)).reshape(-1, 3)
+    expected = [sign(orient(exact(a), exact(b), exact(c))) for a, b, c in tris]
+    assert orient_signs(pts, idx).tolist() == expected
+    line = np.array([[x, x / 3] for t in tris for x in (t[0][0], t[1][0], t[2][0])])
+    expected = [sign(orient(*(exact(p) for p in line[i]))) for i in idx]
+    assert orient_signs(line, idx).tolist() == expected

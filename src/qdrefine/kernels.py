@@ -1,34 +1,122 @@
 """Compiled array kernels of uniform refinement (numba).
 
-Three passes, each linear in the mesh size and free of Python loops:
+Three passes, each linear in the mesh size, parallel and free of Python loops:
 
 1. :func:`number_edges`: every undirected edge gets an id, ordered by ``(min vertex, max
-   vertex)``; a counting sort on the smaller vertex, then a sort of each (small) bucket by
-   the larger vertex. Ids depend on the vertex numbering only, never on the triangle order.
+   vertex)``. A parallel two-level counting sort of the ``3 M`` half-edges by their smaller
+   vertex: per chunk of triangles, counts per *bucket* of ``2^s`` consecutive vertices;
+   prefix sums give every chunk its own slots in every bucket; each bucket is then sorted
+   on its own (a counting sort by vertex, in cache, then a small sort by the larger vertex)
+   and deduplicated, and each half-edge's id is scattered back to its triangle. Ids depend
+   on the vertex numbering only, never on the triangle order, the number of threads or of
+   chunks (a bucket's sorted content does not depend on the order its slots were filled).
 2. :func:`edge_points`: the ``k`` new points of every edge, computed once from its two
    endpoints by a symmetric formula (the point nearer ``a`` is ``(2a + b) / 3`` whichever
    way the edge is walked; midpoints ``(a + b) / 2``), so both neighbours share them.
 3. :func:`emit`: per triangle, the canonical labelling (exact squared-length comparisons,
    tie rules in :mod:`qdrefine.schemes`), the signs of the scheme's forms, a table row, and
    the children written to ``out[t * T: (t + 1) * T]``; children whose canonical frame is a
-   reflection of the input are flipped so that the output stays counter-clockwise.
+   reflection of the input are flipped so that the output stays counter-clockwise. Signs
+   go through the stages of :mod:`qdrefine.predicates` (filter, error-free products,
+   expansions); each is exact, so the output does not depend on which stage decided.
 
 Input triangles must be counter-clockwise (``Mesh`` guarantees it).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numba
 import numpy as np
-from numba import njit, prange
+from llvmlite import binding as llvm
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
+from numpy.typing import NDArray
 
-from .predicates import SCRATCH, form_sign
+from .predicates import (
+    FILTER,
+    SCRATCH,
+    _factor,
+    factor_forms,
+    form_sign_slow,
+    length_filter,
+    length_sign_slow,
+)
 
-__all__ = ["number_edges", "edge_points", "emit", "classify", "CHUNK"]
+__all__ = ["number_edges", "edge_points", "emit", "classify", "canonical", "CHUNK"]
 
 CHUNK = 4096  # triangles per parallel work item
+AHEAD = 8  # software prefetch distance (triangles or edges) for gathers of random rows
+PARALLEL_MIN = 32768  # triangles below which a pass runs on the calling thread only
 
 
-@njit(cache=True)
+@contextmanager
+def _threads_for(n_items: int) -> Iterator[None]:
+    """One numba thread for small inputs: waking the pool costs more than the work (and far
+    more on a busy machine, where a parallel region waits for every thread to be scheduled).
+    ``numba.set_num_threads`` is per calling thread, so this is safe under threads."""
+    if n_items >= PARALLEL_MIN:
+        yield
+        return
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
+# the intrinsic's name carries the pointer type: opaque pointers from LLVM 15 on
+_PREFETCH = "llvm.prefetch.p0" if llvm.llvm_version_info >= (15,) else "llvm.prefetch.p0i8"
+
+
+def _prefetch_codegen(write: int):
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        row = context.cast(builder, args[1], signature.args[1], types.intp)
+        idx = [row] + [context.get_constant(types.intp, 0)] * (aryty.ndim - 1)
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, idx, wraparound=False)
+        i8p = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, _PREFETCH)
+        # read or write access, high temporal locality, data cache
+        builder.call(fn, [builder.bitcast(ptr, i8p), i32(write), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return codegen
+
+
+@intrinsic
+def _prefetch(typingctx, arr, i):
+    """Hint the CPU to load row ``i`` of ``arr`` (LLVM ``llvm.prefetch``; never faults).
+
+    Gathers of point rows through shuffled vertex indices are latency bound: one triangle's
+    work is too long for the out-of-order window to overlap the next triangle's misses.
+    """
+    return types.void(arr, i), _prefetch_codegen(0)
+
+
+@intrinsic
+def _prefetch_write(typingctx, arr, i):
+    """:func:`_prefetch` for a row about to be written (scatters through shuffled ids)."""
+    return types.void(arr, i), _prefetch_codegen(1)
+
+
+# ----------------------------------------------------------------------------------------
+# labelling and classification of one triangle
+#
+# Hot helpers take scalars only: numba increments and decrements the reference count of
+# every array argument on entry to a compiled helper (two atomic operations per array and
+# call), which cost more than the float filter itself.
+
+
+@njit(inline="always", cache=True)
 def _lex_less(ax, ay, bx, by):
     return ax < bx or (ax == bx and ay < by)
 
@@ -44,29 +132,75 @@ def _cmp(i, j, s01, s02, s12):
     return s if i < j else -s
 
 
+@njit(inline="always", cache=True)
+def _pick(i, a, b, c):
+    """``(a, b, c)[i]`` as selects (a runtime tuple index compiles to a branchy switch)."""
+    return a if i == 0 else (b if i == 1 else c)
+
+
+def _strict_labels() -> np.ndarray:
+    """``(27,)``: packed ``iM + 3 iN + 9 iO`` for every sign code of three distinct lengths
+    (``N`` is opposite the shortest edge, ``O`` opposite the longest); -1 for codes with a
+    tie (or no realizable order). The code is ``(s01+1) + 3 (s02+1) + 9 (s12+1)``."""
+    out = np.full(27, -1, dtype=np.int64)
+    for perm in ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)):
+        e = np.empty(3)
+        e[list(perm)] = [0.0, 1.0, 2.0]  # e[i]: rank of the edge opposite vertex i
+        s01, s02, s12 = (int(np.sign(e[i] - e[j])) for i, j in ((0, 1), (0, 2), (1, 2)))
+        code = (s01 + 1) + 3 * (s02 + 1) + 9 * (s12 + 1)
+        out[code] = int(np.argsort(e)[1]) + 3 * int(np.argmin(e)) + 9 * int(np.argmax(e))
+    return out
+
+
+_STRICT = _strict_labels()
+
+
 @njit(cache=True)
 def canonical(x0, y0, x1, y1, x2, y2, buf):
     """Local vertex indices ``(iM, iN, iO)`` of the canonical labelling of one triangle.
 
     ``MN`` is the longest edge and ``M`` the endpoint nearer ``O`` (ties: see module
-    :mod:`qdrefine.schemes`). Squared lengths relative to ``v0`` with ``u = v1 - v0`` and
-    ``w = v2 - v0``: ``e0 = |v1 v2|^2 = uu + ww - 2uw``, ``e1 = ww``, ``e2 = uu``.
+    :mod:`qdrefine.schemes`). ``buf`` is not used (kept for callers).
     """
-    xs = (x0, x1, x2)
-    ys = (y0, y1, y2)
-    s01 = form_sign(x0, y0, x1, y1, x2, y2, 1.0, 0.0, -2.0, buf)  # sign(e0 - e1)
-    s02 = form_sign(x0, y0, x1, y1, x2, y2, 0.0, 1.0, -2.0, buf)  # sign(e0 - e2)
-    s12 = form_sign(x0, y0, x1, y1, x2, y2, -1.0, 1.0, 0.0, buf)  # sign(e1 - e2)
+    return _canonical(x0, y0, x1, y1, x2, y2)
+
+
+@njit(cache=True)
+def _canonical(x0, y0, x1, y1, x2, y2):
+    """:func:`canonical`. ``e_i``, the squared length of the edge opposite ``v_i``, is
+    compared exactly (:func:`qdrefine.predicates.length_sign`); three distinct lengths are
+    labelled by a table lookup, ties by the rules of :func:`_tied_labels`."""
+    s01 = length_filter(x2 - x1, y2 - y1, x0 - x2, y0 - y2)  # sign(e0 - e1)
+    s02 = length_filter(x2 - x1, y2 - y1, x1 - x0, y1 - y0)  # sign(e0 - e2)
+    s12 = length_filter(x0 - x2, y0 - y2, x1 - x0, y1 - y0)  # sign(e1 - e2)
+    if s01 == 0:
+        s01 = length_sign_slow(x1, y1, x2, y2, x2, y2, x0, y0)
+    if s02 == 0:
+        s02 = length_sign_slow(x1, y1, x2, y2, x0, y0, x1, y1)
+    if s12 == 0:
+        s12 = length_sign_slow(x2, y2, x0, y0, x0, y0, x1, y1)
+    packed = _STRICT[(s01 + 1) + 3 * (s02 + 1) + 9 * (s12 + 1)]
+    if packed >= 0:
+        return packed % 3, (packed // 3) % 3, packed // 9
+    return _tied_labels(x0, y0, x1, y1, x2, y2, s01, s02, s12)
+
+
+@njit(cache=True)
+def _tied_labels(x0, y0, x1, y1, x2, y2, s01, s02, s12):
+    """Labelling with ties: of equally long longest edges the one whose opposite vertex is
+    lexicographically smaller; of ``|OM| = |ON|`` the smaller endpoint is ``M``."""
     o = -1
     for i in range(3):
         if _cmp(i, (i + 1) % 3, s01, s02, s12) >= 0 and _cmp(i, (i + 2) % 3, s01, s02, s12) >= 0:
-            if o < 0 or _lex_less(xs[i], ys[i], xs[o], ys[o]):
+            if o < 0 or _lex_less(_pick(i, x0, x1, x2), _pick(i, y0, y1, y2),
+                                  _pick(o, x0, x1, x2), _pick(o, y0, y1, y2)):
                 o = i
     j = (o + 1) % 3
     k = (o + 2) % 3
     # |O v_j|^2 = e_k and |O v_k|^2 = e_j
     c = _cmp(k, j, s01, s02, s12)
-    if c < 0 or (c == 0 and _lex_less(xs[j], ys[j], xs[k], ys[k])):
+    if c < 0 or (c == 0 and _lex_less(_pick(j, x0, x1, x2), _pick(j, y0, y1, y2),
+                                      _pick(k, x0, x1, x2), _pick(k, y0, y1, y2))):
         return j, k, o
     return k, j, o
 
@@ -74,144 +208,348 @@ def canonical(x0, y0, x1, y1, x2, y2, buf):
 @njit(cache=True)
 def classify(x0, y0, x1, y1, x2, y2, forms, lut, buf):
     """Canonical labelling and table row of one triangle: ``(iM, iN, iO, row)``."""
-    im, jn, ko = canonical(x0, y0, x1, y1, x2, y2, buf)
-    xs = (x0, x1, x2)
-    ys = (y0, y1, y2)
+    im, jn, ko = _canonical(x0, y0, x1, y1, x2, y2)
+    mx, my = _pick(im, x0, x1, x2), _pick(im, y0, y1, y2)
+    nx, ny = _pick(jn, x0, x1, x2), _pick(jn, y0, y1, y2)
+    ox, oy = _pick(ko, x0, x1, x2), _pick(ko, y0, y1, y2)
     code = 0
     power = 1
     for f in range(forms.shape[0]):
-        s = form_sign(
-            xs[im], ys[im], xs[jn], ys[jn], xs[ko], ys[ko], forms[f, 0], forms[f, 1], forms[f, 2],
-            buf,
-        )
+        s = _form_filter(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1], forms[f, 2])
+        if s == 0:
+            ok, p1, q1, p2, q2 = _factor(int(forms[f, 0]), int(forms[f, 1]), int(forms[f, 2]))
+            s = form_sign_slow(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1], forms[f, 2],
+                               float(ok), float(p1), float(q1), float(p2), float(q2), buf)
         code += (s + 1) * power
         power *= 3
     return im, jn, ko, lut[code]
 
 
-@njit(cache=True)
-def number_edges(triangles, n_points):
-    """Unique undirected edges of ``triangles (M,3)``.
+@njit(inline="always", cache=True)
+def _form_filter(mx, my, nx, ny, ox, oy, kuu, kww, kuw):
+    """Stage 1 of :func:`qdrefine.predicates.form_sign` (0: undecided)."""
+    ux = nx - mx
+    uy = ny - my
+    wx = ox - mx
+    wy = oy - my
+    p0 = ux * wx
+    p1 = uy * wy
+    uu = ux * ux + uy * uy
+    ww = wx * wx + wy * wy
+    value = kuu * uu + kww * ww + kuw * (p0 + p1)
+    bound = FILTER * (abs(kuu) * uu + abs(kww) * ww + abs(kuw) * (abs(p0) + abs(p1)))
+    return int(value > bound) - int(value < -bound)
 
-    Returns ``edges (E,2)`` (``edges[:,0] < edges[:,1]``, rows sorted lexicographically),
-    ``tri_edges (M,3) int64`` (id of edge ``(v_i, v_{i+1})`` of each triangle) and
-    ``counts (E,) int64`` (number of triangles using each edge).
+
+# ----------------------------------------------------------------------------------------
+# edge numbering
+
+
+def number_edges(triangles: NDArray[np.integer], n_points: int
+                 ) -> tuple[NDArray[np.integer], NDArray[np.int64], NDArray[np.int64]]:
+    """Unique undirected edges of ``triangles (M,3)`` (vertex indices ``< n_points``).
+
+    Returns ``edges (E,2)`` (``edges[:,0] < edges[:,1]``, rows sorted lexicographically,
+    dtype of ``triangles``), ``tri_edges (M,3) int64`` (id of edge ``(v_i, v_{i+1})`` of
+    each triangle) and ``counts (E,) int64`` (number of triangles using each edge).
+    Temporary memory: ``3 M`` half-edge records (bucket offset, larger vertex, index).
     """
-    m = triangles.shape[0]
-    start = np.zeros(n_points + 1, dtype=np.int64)
-    for t in range(m):
-        for i in range(3):
-            a = triangles[t, i]
-            b = triangles[t, (i + 1) % 3]
-            start[min(a, b) + 1] += 1
-    for v in range(n_points):
-        start[v + 1] += start[v]
-    fill = start[:-1].copy()
-    his = np.empty(3 * m, dtype=np.int64)
-    slots = np.empty(3 * m, dtype=np.int64)
-    for t in range(m):
-        for i in range(3):
-            a = triangles[t, i]
-            b = triangles[t, (i + 1) % 3]
-            lo = min(a, b)
-            p = fill[lo]
-            fill[lo] += 1
-            his[p] = max(a, b)
-            slots[p] = 3 * t + i
+    tri = np.asarray(triangles)
+    if tri.dtype not in (np.int32, np.int64):
+        tri = tri.astype(np.int64)
+    tri = np.ascontiguousarray(tri)
+    n = max(int(n_points), 1)
+    with _threads_for(tri.shape[0]):
+        return _number_edges(tri, n, min(max(tri.shape[0] // 65536, 1), 64), _bucket_shift(n))
+
+
+def _number_edges(tri: NDArray[np.integer], n: int, n_chunks: int, shift: int
+                  ) -> tuple[NDArray[np.integer], NDArray[np.int64], NDArray[np.int64]]:
+    """:func:`number_edges` with ``n_chunks`` chunks of triangles and buckets of
+    ``2^shift`` vertices (the result does not depend on either)."""
+    m = tri.shape[0]
+    n_buckets = ((n - 1) >> shift) + 1
+    bucket_counts = np.zeros((n_chunks, n_buckets), dtype=np.int64)
+    _count_buckets(tri, shift, bucket_counts)
+    offsets, starts = _bucket_offsets(bucket_counts)
+    lo = np.empty(3 * m, dtype=np.uint16 if shift <= 16 else np.int32)  # offset in bucket
+    hi = np.empty(3 * m, dtype=tri.dtype)
+    slot = np.empty(3 * m, dtype=np.int32 if 3 * m < 2**31 else np.int64)
+    _scatter(tri, shift, offsets, lo, hi, slot)
+    n_unique = np.empty(n_buckets, dtype=np.int64)
+    _sort_buckets(starts, shift, lo, hi, slot, n_unique)
+    first = np.zeros(n_buckets + 1, dtype=np.int64)
+    np.cumsum(n_unique, out=first[1:])
+    n_edges = int(first[-1])
+    edges = np.empty((n_edges, 2), dtype=tri.dtype)
+    counts = np.empty(n_edges, dtype=np.int64)
     tri_edges = np.empty((m, 3), dtype=np.int64)
-    edges = np.empty((3 * m, 2), dtype=triangles.dtype)
-    counts = np.zeros(3 * m, dtype=np.int64)
-    ne = 0
-    for v in range(n_points):
-        s = start[v]
-        e = start[v + 1]
-        if e - s > 16:
-            order = np.argsort(his[s:e])
-            his[s:e] = his[s:e][order]
-            slots[s:e] = slots[s:e][order]
-        else:
-            for p in range(s + 1, e):
-                h = his[p]
-                sl = slots[p]
-                q = p - 1
-                while q >= s and his[q] > h:
-                    his[q + 1] = his[q]
-                    slots[q + 1] = slots[q]
-                    q -= 1
-                his[q + 1] = h
-                slots[q + 1] = sl
-        for p in range(s, e):
-            if p == s or his[p] != his[p - 1]:
-                edges[ne, 0] = v
-                edges[ne, 1] = his[p]
-                ne += 1
-            counts[ne - 1] += 1
-            tri_edges[slots[p] // 3, slots[p] % 3] = ne - 1
-    return edges[:ne].copy(), tri_edges, counts[:ne].copy()
+    _collect_edges(starts, first, shift, lo, hi, slot, edges, counts, tri_edges.reshape(-1))
+    return edges, tri_edges, counts
+
+
+def _bucket_shift(n: int) -> int:
+    """``s`` with buckets of ``2^s >= 1024`` vertices, at most about 4096 buckets."""
+    s = 10
+    while (n >> s) > 4096:
+        s += 1
+    return s
 
 
 @njit(parallel=True, cache=True)
-def edge_points(points, edges, per_edge, out):
+def _count_buckets(tri, shift, counts):
+    """``counts[c, b]``: half-edges of chunk ``c`` whose smaller vertex is in bucket ``b``."""
+    n_chunks = counts.shape[0]
+    m = tri.shape[0]
+    for c in prange(n_chunks):
+        for t in range(c * m // n_chunks, (c + 1) * m // n_chunks):
+            for i in range(3):
+                counts[c, min(tri[t, i], tri[t, (i + 1) % 3]) >> shift] += 1
+
+
+@njit(cache=True)
+def _bucket_offsets(counts):
+    """First slot of every (chunk, bucket) pair, and bucket starts ``(B + 1,)``."""
+    n_chunks, n_buckets = counts.shape
+    offsets = np.empty_like(counts)
+    starts = np.empty(n_buckets + 1, dtype=np.int64)
+    total = 0
+    for b in range(n_buckets):
+        starts[b] = total
+        for c in range(n_chunks):
+            offsets[c, b] = total
+            total += counts[c, b]
+    starts[n_buckets] = total
+    return offsets, starts
+
+
+@njit(parallel=True, cache=True)
+def _scatter(tri, shift, offsets, lo, hi, slot):
+    """Half-edges into their bucket slots: ``lo`` (offset in the bucket), ``hi`` and the
+    half-edge's index ``3 t + i``."""
+    n_chunks = offsets.shape[0]
+    m = tri.shape[0]
+    for c in prange(n_chunks):
+        pos = offsets[c].copy()
+        for t in range(c * m // n_chunks, (c + 1) * m // n_chunks):
+            for i in range(3):
+                a = tri[t, i]
+                b = tri[t, (i + 1) % 3]
+                v = min(a, b)
+                k = v >> shift
+                p = pos[k]
+                pos[k] = p + 1
+                lo[p] = v - (k << shift)
+                hi[p] = max(a, b)
+                slot[p] = 3 * t + i
+
+
+@njit(parallel=True, cache=True)
+def _sort_buckets(starts, shift, lo, hi, slot, n_unique):
+    """Sort every bucket's half-edges by ``(lo, hi)`` in place; count distinct pairs.
+
+    A counting sort by ``lo`` into bucket-local buffers, then an insertion sort of each
+    vertex's few ``hi`` values (an argsort for long runs at high-degree vertices).
+    """
+    width = 1 << shift
+    for b in prange(starts.shape[0] - 1):
+        s = starts[b]
+        e = starts[b + 1]
+        fill = np.zeros(width + 1, dtype=np.int64)
+        for p in range(s, e):
+            fill[lo[p] + 1] += 1
+        for v in range(width):
+            fill[v + 1] += fill[v]
+        th = np.empty(e - s, dtype=hi.dtype)
+        ts = np.empty(e - s, dtype=slot.dtype)
+        for p in range(s, e):
+            q = fill[lo[p]]
+            fill[lo[p]] = q + 1
+            th[q] = hi[p]
+            ts[q] = slot[p]
+        u = 0
+        q0 = 0
+        for v in range(width):  # after the fill, fill[v] is the end of vertex v's run
+            q1 = fill[v]
+            if q1 - q0 > 16:
+                order = np.argsort(th[q0:q1], kind="mergesort")
+                th[q0:q1] = th[q0:q1][order]
+                ts[q0:q1] = ts[q0:q1][order]
+            else:
+                for p in range(q0 + 1, q1):
+                    x = th[p]
+                    y = ts[p]
+                    q = p - 1
+                    while q >= q0 and th[q] > x:
+                        th[q + 1] = th[q]
+                        ts[q + 1] = ts[q]
+                        q -= 1
+                    th[q + 1] = x
+                    ts[q + 1] = y
+            for q in range(q0, q1):
+                lo[s + q] = v
+                hi[s + q] = th[q]
+                slot[s + q] = ts[q]
+                u += int(q == q0 or th[q] != th[q - 1])
+            q0 = q1
+        n_unique[b] = u
+
+
+@njit(parallel=True, cache=True)
+def _collect_edges(starts, first, shift, lo, hi, slot, edges, counts, tri_edges):
+    """Distinct edges with their multiplicities, and every half-edge's edge id into
+    ``tri_edges (3 M,)`` (a scatter, local when the input numbering is)."""
+    n_buckets = starts.shape[0] - 1
+    for b in prange(n_buckets):
+        g = first[b] - 1
+        base = b << shift
+        end = starts[b + 1]
+        for p in range(starts[b], end):
+            _prefetch_write(tri_edges, slot[min(p + 4 * AHEAD, end - 1)])
+            if p == starts[b] or lo[p] != lo[p - 1] or hi[p] != hi[p - 1]:
+                g += 1
+                edges[g, 0] = base + lo[p]
+                edges[g, 1] = hi[p]
+                counts[g] = 0
+            counts[g] += 1
+            tri_edges[slot[p]] = g
+
+
+# ----------------------------------------------------------------------------------------
+# new points and children
+
+
+def edge_points(points: NDArray[np.float64], edges: NDArray[np.integer], per_edge: int,
+                out: NDArray[np.float64]) -> None:
     """Write the old points and ``per_edge`` new points per edge into ``out``.
 
     ``out`` is ``(N + E * per_edge, 2)``; the points of edge ``g = (a, b)``, ``a < b``, are at
     ``N + g * per_edge + j``, listed from ``a``.
     """
-    n = points.shape[0]
-    for i in prange(n):
-        out[i, 0] = points[i, 0]
-        out[i, 1] = points[i, 1]
-    for g in prange(edges.shape[0]):
-        a = edges[g, 0]
-        b = edges[g, 1]
-        for c in range(2):
-            pa = points[a, c]
-            pb = points[b, c]
-            if per_edge == 2:
-                out[n + 2 * g, c] = (2.0 * pa + pb) / 3.0
-                out[n + 2 * g + 1, c] = (pa + 2.0 * pb) / 3.0
-            else:
-                out[n + g, c] = (pa + pb) * 0.5
+    with _threads_for(edges.shape[0]):
+        _edge_points(points, edges, per_edge, out)
 
 
 @njit(parallel=True, cache=True)
-def emit(points, triangles, tri_edges, per_edge, forms, lut, tables, out):
-    """Children of every triangle into ``out (M * T, 3)``; see the module docstring."""
+def _edge_points(points, edges, per_edge, out):
+    n = points.shape[0]
+    n_edges = edges.shape[0]
+    n_chunks = max((n_edges + CHUNK - 1) // CHUNK, 1)
+    for c in prange(n_chunks):  # one parallel region: chunk c copies its share of old points
+        for i in range(c * n // n_chunks, (c + 1) * n // n_chunks):
+            out[i, 0] = points[i, 0]
+            out[i, 1] = points[i, 1]
+        for g in range(c * CHUNK, min(n_edges, (c + 1) * CHUNK)):
+            _prefetch(points, edges[min(g + AHEAD, n_edges - 1), 1])
+            a = edges[g, 0]
+            b = edges[g, 1]
+            for k in range(2):
+                pa = points[a, k]
+                pb = points[b, k]
+                if per_edge == 2:
+                    out[n + 2 * g, k] = (2.0 * pa + pb) / 3.0
+                    out[n + 2 * g + 1, k] = (pa + 2.0 * pb) / 3.0
+                else:
+                    out[n + g, k] = (pa + pb) * 0.5
+
+
+@njit(cache=True)
+def _frame_tables(tables, per_edge):
+    """``(9, R, T, 3) int64``: the children of every table row as indices into a
+    triangle's *own* local points, for each labelling ``code = iM * 3 + iN``.
+
+    Own local points: ``v0, v1, v2``, then the ``per_edge`` points of each edge
+    ``(v_i, v_{i+1})`` listed from ``v_i``. Children of a labelling whose canonical frame is
+    a reflection of the input (``iN != iM + 1 mod 3``) are flipped (counter-clockwise).
+    """
+    n_rows, n_children, _ = tables.shape
+    out = np.zeros((9, n_rows, n_children, 3), dtype=np.int64)
+    own = np.empty(3 + 3 * per_edge, dtype=np.int64)  # canonical local -> own local
+    for im in range(3):
+        for jn in range(3):
+            if im == jn:
+                continue
+            lab = (im, jn, 3 - im - jn)
+            for e in range(3):
+                own[e] = lab[e]
+                a = lab[e]
+                b = lab[(e + 1) % 3]
+                for j in range(per_edge):
+                    if b == (a + 1) % 3:
+                        own[3 + per_edge * e + j] = 3 + per_edge * a + j
+                    else:
+                        own[3 + per_edge * e + j] = 3 + per_edge * b + per_edge - 1 - j
+            flip = (jn - im) % 3 != 1
+            for r in range(n_rows):
+                for c in range(n_children):
+                    out[im * 3 + jn, r, c, 0] = own[tables[r, c, 0]]
+                    out[im * 3 + jn, r, c, 1] = own[tables[r, c, 2 if flip else 1]]
+                    out[im * 3 + jn, r, c, 2] = own[tables[r, c, 1 if flip else 2]]
+    return out
+
+
+def emit(points: NDArray[np.float64], triangles: NDArray[np.integer],
+         tri_edges: NDArray[np.integer], per_edge: int, forms: NDArray[np.float64],
+         lut: NDArray[np.int8], tables: NDArray[np.int8], out: NDArray[np.integer]) -> None:
+    """Children of every triangle into ``out (M * T, 3)``; see the module docstring.
+
+    ``tri_edges (M, 3)`` numbers edge ``(v_i, v_{i+1})`` of each triangle; its points are
+    ``N + tri_edges * per_edge + j`` (from the smaller vertex). ``forms (F, 3)``, ``lut``
+    and ``tables (R, T, 3)`` are a :class:`qdrefine.schemes.Scheme`'s.
+    """
+    with _threads_for(triangles.shape[0]):
+        _emit(points, triangles, tri_edges, per_edge, forms, lut, tables, out)
+
+
+@njit(parallel=True, cache=True)
+def _emit(points, triangles, tri_edges, per_edge, forms, lut, tables, out):
     m = triangles.shape[0]
     n = points.shape[0]
     n_children = tables.shape[1]
-    n_local = 3 + 3 * per_edge
+    factors = factor_forms(forms)
+    frames = _frame_tables(tables, per_edge)
     n_chunks = (m + CHUNK - 1) // CHUNK
     for ch in prange(n_chunks):
         buf = np.empty(SCRATCH)
-        loc = np.empty(n_local, dtype=np.int64)
+        loc = np.empty(3 + 3 * per_edge, dtype=np.int64)
         for t in range(ch * CHUNK, min(m, (ch + 1) * CHUNK)):
+            ahead = min(t + AHEAD, m - 1)
+            for i in range(3):
+                _prefetch(points, triangles[ahead, i])
             v0 = triangles[t, 0]
             v1 = triangles[t, 1]
             v2 = triangles[t, 2]
-            im, jn, ko, row = classify(
-                points[v0, 0], points[v0, 1], points[v1, 0], points[v1, 1],
-                points[v2, 0], points[v2, 1], forms, lut, buf,
-            )
-            lab = (im, jn, ko)
-            for e in range(3):
-                a = lab[e]
-                b = lab[(e + 1) % 3]
-                te = a if b == (a + 1) % 3 else b
-                from_a = triangles[t, a] < triangles[t, b]
-                base = n + tri_edges[t, te] * per_edge
+            im, jn, ko = _canonical(points[v0, 0], points[v0, 1], points[v1, 0],
+                                    points[v1, 1], points[v2, 0], points[v2, 1])
+            vm = triangles[t, im]
+            vn = triangles[t, jn]
+            vo = triangles[t, ko]
+            mx, my = points[vm, 0], points[vm, 1]
+            nx, ny = points[vn, 0], points[vn, 1]
+            ox, oy = points[vo, 0], points[vo, 1]
+            code = 0
+            power = 1
+            for f in range(forms.shape[0]):
+                s = _form_filter(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1], forms[f, 2])
+                if s == 0:
+                    s = form_sign_slow(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1],
+                                       forms[f, 2], factors[f, 0], factors[f, 1],
+                                       factors[f, 2], factors[f, 3], factors[f, 4], buf)
+                code += (s + 1) * power
+                power *= 3
+            row = lut[code]
+            # own local points: v0, v1, v2, then each edge (v_i, v_i+1)'s points from v_i
+            for i in range(3):
+                a = triangles[t, i]
+                b = triangles[t, (i + 1) % 3]
+                loc[i] = a
+                base = n + tri_edges[t, i] * per_edge
+                back = int(a > b)  # stored from the smaller vertex: reverse when walking down
                 for j in range(per_edge):
-                    loc[3 + per_edge * e + j] = base + (j if from_a else per_edge - 1 - j)
-            loc[0] = triangles[t, im]
-            loc[1] = triangles[t, jn]
-            loc[2] = triangles[t, ko]
-            flip = (jn - im) % 3 != 1
+                    loc[3 + per_edge * i + j] = base + j + back * (per_edge - 1 - 2 * j)
+            lab = im * 3 + jn
+            o = t * n_children
             for r in range(n_children):
-                i0 = tables[row, r, 0]
-                i1 = tables[row, r, 1]
-                i2 = tables[row, r, 2]
-                if flip:
-                    i1, i2 = i2, i1
-                out[t * n_children + r, 0] = loc[i0]
-                out[t * n_children + r, 1] = loc[i1]
-                out[t * n_children + r, 2] = loc[i2]
+                out[o + r, 0] = loc[frames[lab, row, r, 0]]
+                out[o + r, 1] = loc[frames[lab, row, r, 1]]
+                out[o + r, 2] = loc[frames[lab, row, r, 2]]
