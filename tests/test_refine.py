@@ -7,10 +7,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import qdrefine
 from meshes import jittered_grid
 from oracle import exact, orient
 from qdrefine import Mesh, examples, refine, refine_with_parents, scheme_names
-from qdrefine.kernels import number_edges
+from qdrefine.kernels import number_edges, rounding_suspects
 from qdrefine.predicates import orient_signs
 from qdrefine.schemes import get_scheme
 from qdrefine.topology import boundary_edges, conformity, euler_characteristic
@@ -150,3 +151,51 @@ def test_output_is_bit_identical_for_any_thread_count():
         results.append((fine.points.tobytes(), fine.triangles.tobytes()))
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     assert all(r == results[0] for r in results)
+
+
+# --- rounding of the new points ---------------------------------------------------------
+
+NEEDLE_FAR = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1e-9]]) + 1e7
+
+
+@pytest.mark.parametrize("scheme", ["7t-qd", "7t-d", "4t-le"])
+def test_a_needle_far_from_the_origin_is_refused_not_returned_broken(scheme):
+    mesh = Mesh(NEEDLE_FAR, [[0, 1, 2]])
+    with pytest.raises(ValueError, match=r"triangle 0 \(0, 1, 2\) is too thin for its "
+                                         r"distance from the origin"):
+        refine(mesh, scheme)
+    with pytest.raises(ValueError, match="too thin"):
+        qdrefine.partition(NEEDLE_FAR, scheme)
+    with pytest.raises(ValueError, match="too thin"):
+        refine(mesh, scheme, marked=[0])
+    raw = refine(mesh, scheme, strict=False)  # what the check refuses: a degenerate child
+    assert (orient_signs(raw.points, raw.triangles) <= 0).any()
+    # the same needle near the origin is fine
+    near = refine(Mesh(NEEDLE_FAR - 1e7, [[0, 1, 2]]), scheme)
+    assert (orient_signs(near.points, near.triangles) > 0).all()
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-30, 30), st.floats(-30, 30), st.floats(-12, 0), st.floats(0.001, 1),
+       st.integers(0, 1))
+def test_triangles_not_flagged_never_get_a_bad_child(log_offset_x, log_offset_y, log_height,
+                                                     apex, turn):
+    """The float screen of :func:`kernels.rounding_suspects` is certified: whenever it lets
+    a triangle through, every child is counter-clockwise (checked exactly)."""
+    base = np.array([[0.0, 0.0], [1.0, 0.0], [apex, 10.0**log_height]])
+    if turn % 2:
+        base = base[:, ::-1].copy()  # needles along y as well as along x
+    pts = base + [np.sign(log_offset_x) * 10 ** abs(log_offset_x) / 1e10,
+                  np.sign(log_offset_y) * 10 ** abs(log_offset_y) / 1e10]
+    t = np.array([[0, 1, 2]])
+    if orient_signs(pts, t)[0] <= 0:
+        t = t[:, ::-1].copy()
+    if orient_signs(pts, t)[0] <= 0:
+        return  # the rounded apex fell on the base: not a triangle
+    mesh = Mesh(pts, t)
+    for scheme in ("7t-qd", "4t-red"):
+        k = get_scheme(scheme).stencil.per_edge
+        fine = refine(mesh, scheme, strict=False)
+        flagged = rounding_suspects(mesh.points, mesh.triangles, k + 1)[0]
+        if not flagged:
+            assert (orient_signs(fine.points, fine.triangles) > 0).all()

@@ -47,7 +47,7 @@ def study(vertices: NDArray[np.float64], scheme: str, levels: int = 4) -> dict:
     out = {"patches": len(meshes), "patches_refused": len(vertices) - len(meshes), "levels": []}
     current = meshes
     for _ in range(levels):
-        current = [qdrefine.refine(m, scheme, 1) for m in current]
+        current = [qdrefine.refine(m, scheme, 1, strict=False) for m in current]
         out["levels"].append(_check_level(meshes, current))
     return out
 

@@ -47,7 +47,8 @@ from .predicates import (
     length_sign_slow,
 )
 
-__all__ = ["number_edges", "edge_points", "emit", "classify", "canonical", "CHUNK"]
+__all__ = ["number_edges", "edge_points", "emit", "classify", "canonical", "rounding_suspects",
+           "CHUNK"]
 
 CHUNK = 4096  # triangles per parallel work item
 AHEAD = 8  # software prefetch distance (triangles or edges) for gathers of random rows
@@ -553,3 +554,35 @@ def _emit(points, triangles, tri_edges, per_edge, forms, lut, tables, out):
                 out[o + r, 0] = loc[frames[lab, row, r, 0]]
                 out[o + r, 1] = loc[frames[lab, row, r, 1]]
                 out[o + r, 2] = loc[frames[lab, row, r, 2]]
+
+
+@njit(parallel=True, cache=True)
+def rounding_suspects(points, triangles, lattice):
+    """``(M,) bool``: triangles whose children might be flattened or inverted when the new
+    points are rounded to float64 (checked exactly afterwards; almost always all False).
+
+    Every child's corners lie on the barycentric lattice of step ``1 / lattice`` of its
+    parent (3 for the 7T stencil, 2 for midpoints), so its exact doubled area is at least
+    ``A / lattice**2`` (``A``: the parent's doubled area). Rounding a new point moves it by at
+    most ``d = 4 eps C`` per coordinate (``C``: the largest coordinate magnitude), which
+    changes a child's doubled area by at most ``3 sqrt(2) L d + 6 d**2`` (``L``: the parent's
+    longest edge, bounding every child edge). A triangle is a suspect unless ``A`` beats that
+    change with a margin of 8, after allowing ``4 L d`` for the float error of ``A`` itself.
+    """
+    m = triangles.shape[0]
+    out = np.zeros(m, dtype=np.bool_)
+    eps = 2.220446049250313e-16
+    for t in prange(m):
+        a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+        ax, ay = points[a, 0], points[a, 1]
+        bx, by = points[b, 0], points[b, 1]
+        cx, cy = points[c, 0], points[c, 1]
+        big = max(abs(ax), abs(ay), abs(bx), abs(by), abs(cx), abs(cy))
+        ux, uy, wx, wy = bx - ax, by - ay, cx - ax, cy - ay
+        vx, vy = cx - bx, cy - by
+        area = abs(ux * wy - uy * wx)
+        longest = np.sqrt(max(ux * ux + uy * uy, wx * wx + wy * wy, vx * vx + vy * vy))
+        d = 4.0 * eps * big
+        change = 3.0 * np.sqrt(2.0) * longest * d + 6.0 * d * d
+        out[t] = area <= 8.0 * lattice * lattice * change + 4.0 * longest * d
+    return out

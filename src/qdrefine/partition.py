@@ -7,6 +7,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .kernels import edge_points, emit, number_edges
 from .predicates import check_coordinates, orient_signs
+from .refine import check_rounding
 from .schemes import Scheme, get_scheme
 
 __all__ = ["partition", "partition_many"]
@@ -41,7 +42,7 @@ def partition(vertices: ArrayLike, scheme: str | Scheme = "7t-qd"
     return pts[0], tris[0]
 
 
-def partition_many(vertices: ArrayLike, scheme: str | Scheme = "7t-qd"
+def partition_many(vertices: ArrayLike, scheme: str | Scheme = "7t-qd", *, strict: bool = True
                    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Partition ``K`` triangles at once.
 
@@ -49,6 +50,9 @@ def partition_many(vertices: ArrayLike, scheme: str | Scheme = "7t-qd"
     ----------
     vertices : (K, 3, 2) float
     scheme : str or Scheme
+    strict : bool
+        ``False`` returns children that rounding the new points to float64 flattened or
+        inverted instead of raising ``ValueError`` (see :func:`qdrefine.refine`).
 
     Returns
     -------
@@ -77,6 +81,8 @@ def partition_many(vertices: ArrayLike, scheme: str | Scheme = "7t-qd"
     edge_points(points, edges, k, all_points)
     out = np.empty((n_tri * n_children, 3), dtype=np.int64)
     emit(points, triangles, tri_edges, k, sch.forms, sch.lut, sch.tables, out)
+    if strict:
+        check_rounding(points, triangles, all_points, out, k)
     # edges of triangle i are 3i + (0: v0v1, 1: v0v2, 2: v1v2), sorted by (min, max) vertex
     owner = np.repeat(np.arange(n_tri), n_children)[:, None]
     old = out < 3 * n_tri

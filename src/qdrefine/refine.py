@@ -7,16 +7,17 @@ import operator
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .kernels import edge_points, emit, number_edges
+from .kernels import edge_points, emit, number_edges, rounding_suspects
 from .memory import check_memory
 from .mesh import Mesh, edge_ids, index_dtype
+from .predicates import orient_signs
 from .schemes import Scheme, get_scheme
 
 __all__ = ["refine", "refine_with_parents", "as_count", "split_tagged_edges"]
 
 
 def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
-           marked: ArrayLike | None = None) -> Mesh:
+           marked: ArrayLike | None = None, *, strict: bool = True) -> Mesh:
     """Refine every triangle of ``mesh`` ``levels`` times with ``scheme``.
 
     Parameters
@@ -31,12 +32,20 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
         children of the marked triangles are marked again. Everything said below about
         points, parents and tags holds, with only the split edges getting new points
         (numbered by their rank among split edges) and tagged edges cut only where split.
+    strict : bool
+        Uniform refinement only: ``False`` returns children that rounding the new points to
+        float64 flattened or inverted instead of raising (for studies of that effect,
+        ``docs/robustness.md``); local refinement always checks.
 
     Raises
     ------
     MemoryError
         Before allocating anything, when the output and work arrays would need more memory
-        than is available (:func:`check_memory`).
+        than is available (:func:`qdrefine.memory.check_memory`).
+    ValueError
+        When a triangle is too thin for its distance from the origin: its new points,
+        rounded to float64, would give a child with zero area or clockwise orientation
+        (:func:`check_rounding`).
 
     Returns
     -------
@@ -53,12 +62,12 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     >>> fine.n_triangles == examples.plate_with_hole().n_triangles * 49
     True
     """
-    return refine_with_parents(mesh, scheme, levels, marked)[0]
+    return refine_with_parents(mesh, scheme, levels, marked, strict=strict)[0]
 
 
 def refine_with_parents(
     mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
-    marked: ArrayLike | None = None,
+    marked: ArrayLike | None = None, *, strict: bool = True,
 ) -> tuple[Mesh, NDArray[np.int64]]:
     """:func:`refine`, also returning ``parents (M',) int64``: the input triangle of each child."""
     if marked is not None:
@@ -69,8 +78,11 @@ def refine_with_parents(
     levels = as_count(levels, "levels")
     check_memory(mesh, sch, levels)
     out = mesh
-    for _ in range(levels):
-        out = _refine_once(out, sch)
+    for level in range(1, levels + 1):
+        try:
+            out = _refine_once(out, sch, strict)
+        except ValueError as exc:
+            raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
     parents = np.arange(out.n_triangles, dtype=np.int64) // sch.n_children**levels
     return out, parents
 
@@ -86,7 +98,7 @@ def as_count(value: object, name: str) -> int:
     return count
 
 
-def _refine_once(mesh: Mesh, sch: Scheme) -> Mesh:
+def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
     k = sch.stencil.per_edge
     t = mesh.triangles
     n = mesh.n_points
@@ -96,12 +108,69 @@ def _refine_once(mesh: Mesh, sch: Scheme) -> Mesh:
     edge_points(mesh.points, edges, k, points)
     triangles = np.empty((t.shape[0] * sch.n_children, 3), dtype=index_dtype(n_new))
     emit(mesh.points, t, tri_edges, k, sch.forms, sch.lut, sch.tables, triangles)
+    if strict:
+        check_rounding(mesh.points, t, points, triangles, k)
     cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
     new_edges, edge_tags = None, None
     if mesh.edges is not None:
         new_edges, edge_tags = split_tagged_edges(mesh.edges, mesh.edge_tags, edges, n, k)
         new_edges = new_edges.astype(triangles.dtype)
     return Mesh._trusted(points, triangles, cell_tags, new_edges, edge_tags)
+
+
+def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: NDArray[np.float64],
+                   children: NDArray, k: int, parents: NDArray[np.int64] | None = None,
+                   everywhere: bool = False) -> None:
+    """Raise ``ValueError`` when rounding the new points to float64 flattened or inverted a
+    child.
+
+    The decisions are exact, but the trisection points (midpoints) are stored rounded; for a
+    triangle tiny compared with its distance from the origin (a needle of width 1e-9 at 1e7,
+    say) that rounding can move a point across a child's edge. The parents that might be
+    affected are found by a certified float bound (:func:`kernels.rounding_suspects`, almost
+    never any on ordinary meshes) and only their children are checked exactly.
+
+    Parameters
+    ----------
+    points : (N, 2) float64 and triangles : (M, 3) int
+        The mesh that was refined.
+    new_points : (N', 2) float64 and children : (M', 3) int
+        The refined mesh.
+    k : int
+        New points per split edge (2 for 7T schemes, 1 for 4T): the lattice step is
+        ``1 / (k + 1)``.
+    parents : (M',) int64, optional
+        Parent of each child; default: ``M' / M`` contiguous children per parent.
+    everywhere : bool
+        Check every child exactly, not only those of suspects (for adaptive refinement, where
+        a coarsened family's children are not on its first member's lattice).
+    """
+    suspect = (np.ones(triangles.shape[0], dtype=bool) if everywhere
+               else rounding_suspects(points, triangles, k + 1))
+    if not suspect.any():
+        return
+    if parents is None:
+        rows = np.flatnonzero(np.repeat(suspect, children.shape[0] // triangles.shape[0]))
+        parents = rows // (children.shape[0] // triangles.shape[0])
+    else:
+        rows = np.flatnonzero(suspect[parents])
+        parents = parents[rows]
+    signs = orient_signs(new_points, np.ascontiguousarray(children[rows]))
+    bad = np.flatnonzero(signs <= 0)
+    if bad.size:
+        i = int(parents[bad[0]])
+        corners = points[triangles[i]]
+        u, w = corners[1] - corners[0], corners[2] - corners[0]
+        edges = np.linalg.norm(corners - np.roll(corners, 1, axis=0), axis=1)
+        height = abs(u[0] * w[1] - u[1] * w[0]) / edges.max()
+        what = "zero area" if signs[bad[0]] == 0 else "clockwise orientation"
+        raise ValueError(
+            f"triangle {i} {tuple(int(v) for v in triangles[i])} is too thin for its distance "
+            f"from the origin (height {height:.3g}, coordinates up to "
+            f"{np.abs(corners).max():.3g}): "
+            f"its new points rounded to float64 give a child with {what} "
+            f"({bad.size} such children in all); translate the mesh nearer the origin or "
+            "refine less")
 
 
 def split_tagged_edges(tagged: NDArray, tags: NDArray, edges: NDArray, n: int, k: int,

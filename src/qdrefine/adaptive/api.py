@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..mesh import Mesh
 from ..quality import angles
-from ..refine import as_count
+from ..refine import as_count, check_rounding
 from ..schemes import Scheme, get_scheme
 from .families import Families
 from .step import step
@@ -81,7 +81,10 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
     for _ in range(levels):
         if not (mask.any() or fam_mask.any()):
             break
+        before = out
         out, level_parents, fam, inside = step(out, mask, fam_mask, sch, floor, fam)
+        check_rounding(before.points, before.triangles, out.points, out.triangles,
+                       sch.stencil.per_edge, level_parents, everywhere=True)
         parents = parents[level_parents]
         mask = inside & (fam.member < 0)
         fam_mask = np.zeros(fam.n_families, dtype=bool)
@@ -133,6 +136,8 @@ def refine_step(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
         return mesh, np.arange(mesh.n_triangles, dtype=np.int64), families
     out, parents, fam, _ = step(mesh, mask, np.zeros(families.n_families, dtype=bool), sch,
                                 _floor(mesh, min_angle), families)
+    check_rounding(mesh.points, mesh.triangles, out.points, out.triangles,
+                   sch.stencil.per_edge, parents, everywhere=True)
     return out, parents, fam
 
 
