@@ -30,8 +30,9 @@ def _same(a: qdrefine.Mesh, b: qdrefine.Mesh) -> None:
 def test_convert_round_trip_through_a_store(tmp_path):
     mesh = examples.plate_with_hole()
     qdrefine.write(tmp_path / "in.msh", mesh)
-    assert main(["convert", str(tmp_path / "in.msh"), str(tmp_path / "in.zarr"),
-                 "--chunk-size", "50", "-q"]) == 0
+    result = cli("convert", tmp_path / "in.msh", tmp_path / "in.zarr", "--chunk-size", "50")
+    assert result.returncode == 0 and result.stdout.endswith("written from "
+                                                             f"{tmp_path / 'in.msh'}\n")
     assert store.open(tmp_path / "in.zarr").triangles.chunks[0][0] == 50
     assert main(["convert", str(tmp_path / "in.zarr"), str(tmp_path / "back.vtu"), "-q"]) == 0
     back = qdrefine.read(tmp_path / "back.vtu")
