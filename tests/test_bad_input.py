@@ -286,3 +286,18 @@ def test_every_kind_is_documented():
     guide = (Path(__file__).parents[1] / "docs" / "guide.md").read_text()
     for kind in check.KINDS:
         assert f"`{kind}`" in guide, kind
+
+
+def test_too_thin_for_float64_children_command_line(tmp_path):
+    """Exact decisions, but the rounded new points would flatten a child: refused."""
+    path = tmp_path / "needle.msh"
+    qdrefine.write(path, qdrefine.Mesh(np.array([[0, 0], [1, 0], [0.5, 1e-9]]) + 1e7,
+                                       [[0, 1, 2]]))
+    before = _snapshot(tmp_path)
+    out = tmp_path / "out.msh"
+    result = cli("refine", path, out)
+    assert result.returncode == 1
+    assert result.stderr.startswith(f"qdrefine: error: {path}: triangle 0 (0, 1, 2) is too "
+                                    "thin for its distance from the origin")
+    assert result.stderr.count("\n") == 1
+    assert not out.exists() and _snapshot(tmp_path) == before

@@ -86,9 +86,10 @@ def test_area_is_exact_when_new_points_are_exact(scheme):
 @settings(max_examples=150, deadline=None)
 @given(tri=triangles())
 def test_vertex_order_does_not_matter(scheme, tri):
-    reference = triangle_set(*partition(tri, scheme))
+    # decisions only: strict=False keeps needles whose rounded children degenerate
+    reference = triangle_set(*partition(tri, scheme, strict=False))
     for perm in permutations(range(3)):
-        assert triangle_set(*partition(tri[list(perm)], scheme)) == reference
+        assert triangle_set(*partition(tri[list(perm)], scheme, strict=False)) == reference
 
 
 def has_tie(vertices) -> bool:
@@ -109,8 +110,8 @@ def test_mirror_image_gives_mirror_partition(scheme, tri):
     diagram is the mirror of the left half."""
     assume(not has_tie(tri))
     mirror = tri * np.array([-1.0, 1.0])
-    pts, tris = partition(mirror, scheme)
-    expected = unoriented(*partition(tri, scheme))
+    pts, tris = partition(mirror, scheme, strict=False)
+    expected = unoriented(*partition(tri, scheme, strict=False))
     assert unoriented(pts * np.array([-1.0, 1.0]), tris) == expected
 
 
@@ -145,7 +146,7 @@ def test_qd_is_definition_1_on_both_halves():
 @settings(max_examples=300, deadline=None)
 @given(tri=triangles())
 def test_qd_is_definition_1_with_ties(tri):
-    pts, t = partition(tri, "7t-qd")
+    pts, t = partition(tri, "7t-qd", strict=False)  # the decision, even for extreme needles
     m, n, o = canonical([exact(p) for p in tri])
     assert name_set(t, labelled(pts, tri)) == {frozenset(x) for x in qd_triangles(m, n, o)}
 
@@ -180,7 +181,7 @@ def test_7t_d_is_delaunay_and_equals_qd_in_regions_1_and_2():
 @settings(max_examples=200, deadline=None)
 @given(tri=triangles())
 def test_7t_d_is_delaunay_with_ties(tri):
-    pts, t = partition(tri, "7t-d")
+    pts, t = partition(tri, "7t-d", strict=False)  # the decision, even for extreme needles
     exact_pts = exact_local_points(tri, 2)
     for x in t:
         corners = tuple(exact_pts[i] for i in x)

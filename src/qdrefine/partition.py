@@ -13,7 +13,7 @@ from .schemes import Scheme, get_scheme
 __all__ = ["partition", "partition_many"]
 
 
-def partition(vertices: ArrayLike, scheme: str | Scheme = "7t-qd"
+def partition(vertices: ArrayLike, scheme: str | Scheme = "7t-qd", *, strict: bool = True
               ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Partition one triangle.
 
@@ -22,6 +22,9 @@ def partition(vertices: ArrayLike, scheme: str | Scheme = "7t-qd"
     vertices : (3, 2) float
         The triangle, in either orientation.
     scheme : {"7t-qd", "7t-le", "7t-d", "4t-le", "4t-red"}
+    strict : bool
+        ``False`` returns children that rounding the new points to float64 flattened or
+        inverted instead of raising ``ValueError`` (see :func:`qdrefine.refine`).
 
     Returns
     -------
@@ -38,7 +41,8 @@ def partition(vertices: ArrayLike, scheme: str | Scheme = "7t-qd"
     >>> pts.shape, tris.shape
     ((9, 2), (7, 3))
     """
-    pts, tris = partition_many(np.asarray(vertices, dtype=np.float64)[None], scheme)
+    pts, tris = partition_many(np.asarray(vertices, dtype=np.float64)[None], scheme,
+                               strict=strict)
     return pts[0], tris[0]
 
 

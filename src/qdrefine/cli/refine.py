@@ -80,7 +80,12 @@ def run(args: argparse.Namespace) -> int:
         with _common.Progress(steps + 2, args.quiet) as progress:
             progress.step(f"reading {args.input}")
             mesh = read(args.input)
-            fine, summary = _refiner(args)(mesh, args, progress)
+            try:
+                fine, summary = _refiner(args)(mesh, args, progress)
+            except ValueError as exc:  # e.g. a triangle too thin for float64 children
+                if str(exc).startswith(f"{args.input}:"):
+                    raise
+                raise ValueError(f"{args.input}: {exc}") from None
             progress.step(f"writing {args.output}")
             write(args.output, fine, binary=args.binary or None)
         if not args.quiet:
