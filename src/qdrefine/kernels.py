@@ -456,7 +456,7 @@ def _edge_points(points, edges, per_edge, out):
 
 @njit(cache=True)
 def _frame_tables(tables, per_edge):
-    """``(9, R, T, 3) int64``: the children of every table row as indices into a
+    """``(9, R, 3 T) int8``: the children of every table row as indices into a
     triangle's *own* local points, for each labelling ``code = iM * 3 + iN``.
 
     Own local points: ``v0, v1, v2``, then the ``per_edge`` points of each edge
@@ -464,8 +464,8 @@ def _frame_tables(tables, per_edge):
     a reflection of the input (``iN != iM + 1 mod 3``) are flipped (counter-clockwise).
     """
     n_rows, n_children, _ = tables.shape
-    out = np.zeros((9, n_rows, n_children, 3), dtype=np.int64)
-    own = np.empty(3 + 3 * per_edge, dtype=np.int64)  # canonical local -> own local
+    out = np.zeros((9, n_rows, 3 * n_children), dtype=np.int8)
+    own = np.empty(3 + 3 * per_edge, dtype=np.int8)  # canonical local -> own local
     for im in range(3):
         for jn in range(3):
             if im == jn:
@@ -483,32 +483,41 @@ def _frame_tables(tables, per_edge):
             flip = (jn - im) % 3 != 1
             for r in range(n_rows):
                 for c in range(n_children):
-                    out[im * 3 + jn, r, c, 0] = own[tables[r, c, 0]]
-                    out[im * 3 + jn, r, c, 1] = own[tables[r, c, 2 if flip else 1]]
-                    out[im * 3 + jn, r, c, 2] = own[tables[r, c, 1 if flip else 2]]
+                    out[im * 3 + jn, r, 3 * c] = own[tables[r, c, 0]]
+                    out[im * 3 + jn, r, 3 * c + 1] = own[tables[r, c, 2 if flip else 1]]
+                    out[im * 3 + jn, r, 3 * c + 2] = own[tables[r, c, 1 if flip else 2]]
     return out
 
 
 def emit(points: NDArray[np.float64], triangles: NDArray[np.integer],
          tri_edges: NDArray[np.integer], per_edge: int, forms: NDArray[np.float64],
-         lut: NDArray[np.int8], tables: NDArray[np.int8], out: NDArray[np.integer]) -> None:
+         lut: NDArray[np.int8], tables: NDArray[np.int8], out: NDArray[np.integer]
+         ) -> NDArray[np.bool_]:
     """Children of every triangle into ``out (M * T, 3)``; see the module docstring.
 
     ``tri_edges (M, 3)`` numbers edge ``(v_i, v_{i+1})`` of each triangle; its points are
     ``N + tri_edges * per_edge + j`` (from the smaller vertex). ``forms (F, 3)``, ``lut``
     and ``tables (R, T, 3)`` are a :class:`qdrefine.schemes.Scheme`'s.
+
+    Returns :func:`rounding_suspects` ``(M,) bool`` for lattice ``per_edge + 1``, computed in
+    the same sweep (the corners are loaded anyway).
     """
+    if not out.flags.c_contiguous:
+        raise ValueError("emit: out must be C-contiguous")
+    suspect = np.empty(triangles.shape[0], dtype=np.bool_)
     with _threads_for(triangles.shape[0]):
-        _emit(points, triangles, tri_edges, per_edge, forms, lut, tables, out)
+        _emit(points, triangles, tri_edges, per_edge, forms, lut,
+              _frame_tables(tables, per_edge), out.reshape(-1), suspect)
+    return suspect
 
 
 @njit(parallel=True, cache=True)
-def _emit(points, triangles, tri_edges, per_edge, forms, lut, tables, out):
+def _emit(points, triangles, tri_edges, per_edge, forms, lut, frames, out, suspect):
     m = triangles.shape[0]
     n = points.shape[0]
-    n_children = tables.shape[1]
+    width = frames.shape[2]  # 3 T entries per (labelling, row)
     factors = factor_forms(forms)
-    frames = _frame_tables(tables, per_edge)
+    lattice = float(per_edge + 1)
     n_chunks = (m + CHUNK - 1) // CHUNK
     for ch in prange(n_chunks):
         buf = np.empty(SCRATCH)
@@ -520,14 +529,14 @@ def _emit(points, triangles, tri_edges, per_edge, forms, lut, tables, out):
             v0 = triangles[t, 0]
             v1 = triangles[t, 1]
             v2 = triangles[t, 2]
-            im, jn, ko = _canonical(points[v0, 0], points[v0, 1], points[v1, 0],
-                                    points[v1, 1], points[v2, 0], points[v2, 1])
-            vm = triangles[t, im]
-            vn = triangles[t, jn]
-            vo = triangles[t, ko]
-            mx, my = points[vm, 0], points[vm, 1]
-            nx, ny = points[vn, 0], points[vn, 1]
-            ox, oy = points[vo, 0], points[vo, 1]
+            x0, y0 = points[v0, 0], points[v0, 1]
+            x1, y1 = points[v1, 0], points[v1, 1]
+            x2, y2 = points[v2, 0], points[v2, 1]
+            suspect[t] = _suspect(x0, y0, x1, y1, x2, y2, lattice)
+            im, jn, ko = _canonical(x0, y0, x1, y1, x2, y2)
+            mx, my = _pick(im, x0, x1, x2), _pick(im, y0, y1, y2)
+            nx, ny = _pick(jn, x0, x1, x2), _pick(jn, y0, y1, y2)
+            ox, oy = _pick(ko, x0, x1, x2), _pick(ko, y0, y1, y2)
             code = 0
             power = 1
             for f in range(forms.shape[0]):
@@ -538,7 +547,6 @@ def _emit(points, triangles, tri_edges, per_edge, forms, lut, tables, out):
                                        factors[f, 2], factors[f, 3], factors[f, 4], buf)
                 code += (s + 1) * power
                 power *= 3
-            row = lut[code]
             # own local points: v0, v1, v2, then each edge (v_i, v_i+1)'s points from v_i
             for i in range(3):
                 a = triangles[t, i]
@@ -549,11 +557,10 @@ def _emit(points, triangles, tri_edges, per_edge, forms, lut, tables, out):
                 for j in range(per_edge):
                     loc[3 + per_edge * i + j] = base + j + back * (per_edge - 1 - 2 * j)
             lab = im * 3 + jn
-            o = t * n_children
-            for r in range(n_children):
-                out[o + r, 0] = loc[frames[lab, row, r, 0]]
-                out[o + r, 1] = loc[frames[lab, row, r, 1]]
-                out[o + r, 2] = loc[frames[lab, row, r, 2]]
+            row = lut[code]
+            o = t * width
+            for q in range(width):
+                out[o + q] = loc[frames[lab, row, q]]
 
 
 @njit(parallel=True, cache=True)
@@ -571,18 +578,22 @@ def rounding_suspects(points, triangles, lattice):
     """
     m = triangles.shape[0]
     out = np.zeros(m, dtype=np.bool_)
-    eps = 2.220446049250313e-16
     for t in prange(m):
         a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
-        ax, ay = points[a, 0], points[a, 1]
-        bx, by = points[b, 0], points[b, 1]
-        cx, cy = points[c, 0], points[c, 1]
-        big = max(abs(ax), abs(ay), abs(bx), abs(by), abs(cx), abs(cy))
-        ux, uy, wx, wy = bx - ax, by - ay, cx - ax, cy - ay
-        vx, vy = cx - bx, cy - by
-        area = abs(ux * wy - uy * wx)
-        longest = np.sqrt(max(ux * ux + uy * uy, wx * wx + wy * wy, vx * vx + vy * vy))
-        d = 4.0 * eps * big
-        change = 3.0 * np.sqrt(2.0) * longest * d + 6.0 * d * d
-        out[t] = area <= 8.0 * lattice * lattice * change + 4.0 * longest * d
+        out[t] = _suspect(points[a, 0], points[a, 1], points[b, 0], points[b, 1],
+                          points[c, 0], points[c, 1], float(lattice))
     return out
+
+
+@njit(inline="always", cache=True)
+def _suspect(ax, ay, bx, by, cx, cy, lattice):
+    """One triangle of :func:`rounding_suspects`."""
+    eps = 2.220446049250313e-16
+    big = max(abs(ax), abs(ay), abs(bx), abs(by), abs(cx), abs(cy))
+    ux, uy, wx, wy = bx - ax, by - ay, cx - ax, cy - ay
+    vx, vy = cx - bx, cy - by
+    area = abs(ux * wy - uy * wx)
+    longest = np.sqrt(max(ux * ux + uy * uy, wx * wx + wy * wy, vx * vx + vy * vy))
+    d = 4.0 * eps * big
+    change = 3.0 * np.sqrt(2.0) * longest * d + 6.0 * d * d
+    return area <= 8.0 * lattice * lattice * change + 4.0 * longest * d

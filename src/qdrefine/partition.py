@@ -84,9 +84,9 @@ def partition_many(vertices: ArrayLike, scheme: str | Scheme = "7t-qd", *, stric
     all_points = np.empty((3 * n_tri + k * edges.shape[0], 2))
     edge_points(points, edges, k, all_points)
     out = np.empty((n_tri * n_children, 3), dtype=np.int64)
-    emit(points, triangles, tri_edges, k, sch.forms, sch.lut, sch.tables, out)
+    suspect = emit(points, triangles, tri_edges, k, sch.forms, sch.lut, sch.tables, out)
     if strict:
-        check_rounding(points, triangles, all_points, out, k)
+        check_rounding(points, triangles, all_points, out, k, suspect=suspect)
     # edges of triangle i are 3i + (0: v0v1, 1: v0v2, 2: v1v2), sorted by (min, max) vertex
     owner = np.repeat(np.arange(n_tri), n_children)[:, None]
     old = out < 3 * n_tri

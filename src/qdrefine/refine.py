@@ -62,7 +62,9 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     >>> fine.n_triangles == examples.plate_with_hole().n_triangles * 49
     True
     """
-    return refine_with_parents(mesh, scheme, levels, marked, strict=strict)[0]
+    if marked is not None:
+        return refine_with_parents(mesh, scheme, levels, marked)[0]
+    return _refine_uniform(mesh, get_scheme(scheme), as_count(levels, "levels"), strict)
 
 
 def refine_with_parents(
@@ -76,6 +78,11 @@ def refine_with_parents(
         return refine_marked(mesh, marked, scheme, levels)
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
+    out = _refine_uniform(mesh, sch, levels, strict)
+    return out, np.arange(out.n_triangles, dtype=np.int64) // sch.n_children**levels
+
+
+def _refine_uniform(mesh: Mesh, sch: Scheme, levels: int, strict: bool) -> Mesh:
     check_memory(mesh, sch, levels)
     out = mesh
     for level in range(1, levels + 1):
@@ -83,8 +90,7 @@ def refine_with_parents(
             out = _refine_once(out, sch, strict)
         except ValueError as exc:
             raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
-    parents = np.arange(out.n_triangles, dtype=np.int64) // sch.n_children**levels
-    return out, parents
+    return out
 
 
 def as_count(value: object, name: str) -> int:
@@ -107,9 +113,9 @@ def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
     points = np.empty((n_new, 2), dtype=np.float64)
     edge_points(mesh.points, edges, k, points)
     triangles = np.empty((t.shape[0] * sch.n_children, 3), dtype=index_dtype(n_new))
-    emit(mesh.points, t, tri_edges, k, sch.forms, sch.lut, sch.tables, triangles)
+    suspect = emit(mesh.points, t, tri_edges, k, sch.forms, sch.lut, sch.tables, triangles)
     if strict:
-        check_rounding(mesh.points, t, points, triangles, k)
+        check_rounding(mesh.points, t, points, triangles, k, suspect=suspect)
     cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
     new_edges, edge_tags = None, None
     if mesh.edges is not None:
@@ -120,7 +126,7 @@ def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
 
 def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: NDArray[np.float64],
                    children: NDArray, k: int, parents: NDArray[np.int64] | None = None,
-                   everywhere: bool = False) -> None:
+                   everywhere: bool = False, suspect: NDArray[np.bool_] | None = None) -> None:
     """Raise ``ValueError`` when rounding the new points to float64 flattened or inverted a
     child.
 
@@ -144,9 +150,13 @@ def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: 
     everywhere : bool
         Check every child exactly, not only those of suspects (for adaptive refinement, where
         a coarsened family's children are not on its first member's lattice).
+    suspect : (M,) bool, optional
+        :func:`kernels.rounding_suspects` if already known (:func:`kernels.emit` returns it).
     """
-    suspect = (np.ones(triangles.shape[0], dtype=bool) if everywhere
-               else rounding_suspects(points, triangles, k + 1))
+    if everywhere:
+        suspect = np.ones(triangles.shape[0], dtype=bool)
+    elif suspect is None:
+        suspect = rounding_suspects(points, triangles, k + 1)
     if not suspect.any():
         return
     if parents is None:
