@@ -41,8 +41,9 @@ import numpy as np
 
 import qdrefine
 from qdrefine import Mesh, refine
-from qdrefine.kernels import edge_points, emit, number_edges
+from qdrefine.kernels import emit, number_edges
 from qdrefine.mesh import index_dtype
+from qdrefine.numbering import bucket_points, sort_edges
 
 SCHEMES = qdrefine.scheme_names()
 
@@ -165,18 +166,18 @@ def passes(mesh: Mesh, repeat: int) -> dict:
     """Seconds of each pass of one 7T-QD level (best of ``repeat``), all threads and one."""
     import numba
     sch = qdrefine.get_scheme("7t-qd")
-    edges, tri_edges, _ = number_edges(mesh.triangles, mesh.n_points)
-    n_new = mesh.n_points + 2 * edges.shape[0]
+    buckets = sort_edges(mesh.triangles, mesh.n_points)
+    n_new = mesh.n_points + 2 * buckets.n_edges
     pts = np.empty((n_new, 2))
     tris = np.empty((mesh.n_triangles * 7, 3), dtype=index_dtype(n_new))
     out = {}
     for threads in sorted({numba.config.NUMBA_NUM_THREADS, 1}, reverse=True):
         numba.set_num_threads(threads)
-        out[threads] = {
-            "number_edges": best(lambda: number_edges(mesh.triangles, mesh.n_points), repeat),
-            "edge_points": best(lambda: edge_points(mesh.points, edges, 2, pts), repeat),
-            "emit": best(lambda: emit(mesh.points, mesh.triangles, tri_edges, 2, sch.forms,
-                                      sch.lut, sch.tables, tris), repeat),
+        out[threads] = {  # the passes of refine (buckets: no global edge list or ids)
+            "number_edges": best(lambda: sort_edges(mesh.triangles, mesh.n_points), repeat),
+            "edge_points": best(lambda: bucket_points(mesh.points, buckets, 2, pts), repeat),
+            "emit": best(lambda: emit(mesh.points, mesh.triangles, buckets.local, 2,
+                                      sch.forms, sch.lut, sch.tables, tris, buckets), repeat),
             "refine": best(lambda: refine(mesh, sch), repeat),
         }
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)

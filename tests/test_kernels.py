@@ -14,7 +14,8 @@ from meshes import jittered_grid
 from oracle import canonical as canonical_oracle
 from oracle import exact, sq
 from qdrefine import Mesh, examples, refine, scheme_names
-from qdrefine.kernels import _number_edges, canonical, classify, edge_points, emit, number_edges
+from qdrefine.kernels import canonical, classify, edge_points, emit, number_edges
+from qdrefine.numbering import bucket_points, sort_edges
 from qdrefine.predicates import (
     UNDECIDED,
     _length_sign_stage2,
@@ -241,10 +242,35 @@ def test_number_edges_matches_np_unique(n_points, m, fan, seed, n_chunks, shift,
     rng = np.random.default_rng(seed)
     tri = triangle_soup(rng, n_points, m, fan if n_points > fan + 2 else 0).astype(dtype)
     expected = edges_oracle(tri)
-    got = _number_edges(tri, n_points, n_chunks, shift)
+    buckets = sort_edges(tri, n_points, n_chunks, shift)
+    edges, counts = buckets.edges()
+    got = (edges, buckets.global_ids(tri), counts)
     for g, e in zip(got, expected, strict=True):
         np.testing.assert_array_equal(g, e)
     assert got[0].dtype == dtype and got[1].dtype == np.int64 and got[2].dtype == np.int64
+    assert buckets.local.dtype == np.int32
+
+
+@pytest.mark.parametrize("scheme", ["7t-qd", "4t-red"])
+def test_bucket_pipeline_matches_global_ids(scheme):
+    """refine's path (bucket-local ids, points per bucket) equals the public kernels' (global
+    ids, points per edge), with several buckets and chunks."""
+    mesh = jittered_grid(40, seed=3)
+    sch = get_scheme(scheme)
+    k = sch.stencil.per_edge
+    buckets = sort_edges(mesh.triangles, mesh.n_points, n_chunks=3, shift=6)
+    edges, tri_edges, _ = number_edges(mesh.triangles, mesh.n_points)
+    n_new = mesh.n_points + k * len(edges)
+    expected_points, points = np.empty((n_new, 2)), np.full((n_new, 2), np.nan)
+    edge_points(mesh.points, edges, k, expected_points)
+    bucket_points(mesh.points, buckets, k, points)
+    np.testing.assert_array_equal(points, expected_points)
+    shape = (mesh.n_triangles * sch.n_children, 3)
+    expected, got = np.empty(shape, dtype=np.int64), np.empty(shape, dtype=np.int64)
+    emit(mesh.points, mesh.triangles, tri_edges, k, sch.forms, sch.lut, sch.tables, expected)
+    emit(mesh.points, mesh.triangles, buckets.local, k, sch.forms, sch.lut, sch.tables, got,
+         buckets)
+    np.testing.assert_array_equal(got, expected)
 
 
 def test_number_edges_public_entry_on_a_mesh():

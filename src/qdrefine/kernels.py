@@ -2,41 +2,34 @@
 
 Three passes, each linear in the mesh size, parallel and free of Python loops:
 
-1. :func:`number_edges`: every undirected edge gets an id, ordered by ``(min vertex, max
-   vertex)``. A parallel two-level counting sort of the ``3 M`` half-edges by their smaller
-   vertex: per chunk of triangles, counts per *bucket* of ``2^s`` consecutive vertices;
-   prefix sums give every chunk its own slots in every bucket; each bucket is then sorted
-   on its own (a counting sort by vertex, in cache, then a small sort by the larger vertex)
-   and deduplicated, and each half-edge's id is scattered back to its triangle. Ids depend
-   on the vertex numbering only, never on the triangle order, the number of threads or of
-   chunks (a bucket's sorted content does not depend on the order its slots were filled).
-2. :func:`edge_points`: the ``k`` new points of every edge, computed once from its two
-   endpoints by a symmetric formula (the point nearer ``a`` is ``(2a + b) / 3`` whichever
-   way the edge is walked; midpoints ``(a + b) / 2``), so both neighbours share them.
+1. Edge numbering (:mod:`qdrefine.numbering`): every undirected edge gets an id, ordered by
+   ``(min vertex, max vertex)``, by a parallel two-level counting sort of the half-edges;
+   ids never depend on the triangle order or the number of threads.
+2. New points (:func:`edge_points` from an edge list, or
+   :func:`qdrefine.numbering.bucket_points` straight from the sorted buckets): the ``k``
+   new points of every edge, computed once from its two endpoints by a symmetric formula
+   (the point nearer ``a`` is ``(2a + b) / 3`` whichever way the edge is walked; midpoints
+   ``(a + b) / 2``), so both neighbours share them.
 3. :func:`emit`: per triangle, the canonical labelling (exact squared-length comparisons,
    tie rules in :mod:`qdrefine.schemes`), the signs of the scheme's forms, a table row, and
    the children written to ``out[t * T: (t + 1) * T]``; children whose canonical frame is a
    reflection of the input are flipped so that the output stays counter-clockwise. Signs
    go through the stages of :mod:`qdrefine.predicates` (filter, error-free products,
-   expansions); each is exact, so the output does not depend on which stage decided.
+   expansions); each is exact, so the output does not depend on which stage decided. The
+   same sweep flags the triangles whose children rounding could spoil
+   (:func:`rounding_suspects`).
 
 Input triangles must be counter-clockwise (``Mesh`` guarantees it).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
-
-import numba
 import numpy as np
-from llvmlite import binding as llvm
-from llvmlite import ir
-from numba import njit, prange, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit, prange
 from numpy.typing import NDArray
 
+from .jit import AHEAD, CHUNK, prefetch, threads_for
+from .numbering import EdgeBuckets, edge_point, number_edges
 from .predicates import (
     FILTER,
     SCRATCH,
@@ -49,65 +42,6 @@ from .predicates import (
 
 __all__ = ["number_edges", "edge_points", "emit", "classify", "canonical", "rounding_suspects",
            "CHUNK"]
-
-CHUNK = 4096  # triangles per parallel work item
-AHEAD = 8  # software prefetch distance (triangles or edges) for gathers of random rows
-PARALLEL_MIN = 32768  # triangles below which a pass runs on the calling thread only
-
-
-@contextmanager
-def _threads_for(n_items: int) -> Iterator[None]:
-    """One numba thread for small inputs: waking the pool costs more than the work (and far
-    more on a busy machine, where a parallel region waits for every thread to be scheduled).
-    ``numba.set_num_threads`` is per calling thread, so this is safe under threads."""
-    if n_items >= PARALLEL_MIN:
-        yield
-        return
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(before)
-
-
-# the intrinsic's name carries the pointer type: opaque pointers from LLVM 15 on
-_PREFETCH = "llvm.prefetch.p0" if llvm.llvm_version_info >= (15,) else "llvm.prefetch.p0i8"
-
-
-def _prefetch_codegen(write: int):
-    def codegen(context, builder, signature, args):
-        aryty = signature.args[0]
-        ary = context.make_array(aryty)(context, builder, args[0])
-        row = context.cast(builder, args[1], signature.args[1], types.intp)
-        idx = [row] + [context.get_constant(types.intp, 0)] * (aryty.ndim - 1)
-        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, idx, wraparound=False)
-        i8p = ir.IntType(8).as_pointer()
-        i32 = ir.IntType(32)
-        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
-        fn = cgutils.get_or_insert_function(builder.module, fnty, _PREFETCH)
-        # read or write access, high temporal locality, data cache
-        builder.call(fn, [builder.bitcast(ptr, i8p), i32(write), i32(3), i32(1)])
-        return context.get_dummy_value()
-
-    return codegen
-
-
-@intrinsic
-def _prefetch(typingctx, arr, i):
-    """Hint the CPU to load row ``i`` of ``arr`` (LLVM ``llvm.prefetch``; never faults).
-
-    Gathers of point rows through shuffled vertex indices are latency bound: one triangle's
-    work is too long for the out-of-order window to overlap the next triangle's misses.
-    """
-    return types.void(arr, i), _prefetch_codegen(0)
-
-
-@intrinsic
-def _prefetch_write(typingctx, arr, i):
-    """:func:`_prefetch` for a row about to be written (scatters through shuffled ids)."""
-    return types.void(arr, i), _prefetch_codegen(1)
-
 
 # ----------------------------------------------------------------------------------------
 # labelling and classification of one triangle
@@ -243,180 +177,6 @@ def _form_filter(mx, my, nx, ny, ox, oy, kuu, kww, kuw):
 
 
 # ----------------------------------------------------------------------------------------
-# edge numbering
-
-
-def number_edges(triangles: NDArray[np.integer], n_points: int
-                 ) -> tuple[NDArray[np.integer], NDArray[np.int64], NDArray[np.int64]]:
-    """Unique undirected edges of ``triangles (M,3)`` (vertex indices ``< n_points``).
-
-    Returns ``edges (E,2)`` (``edges[:,0] < edges[:,1]``, rows sorted lexicographically,
-    dtype of ``triangles``), ``tri_edges (M,3) int64`` (id of edge ``(v_i, v_{i+1})`` of
-    each triangle) and ``counts (E,) int64`` (number of triangles using each edge).
-    Temporary memory: ``3 M`` half-edge records (bucket offset, larger vertex, index).
-    """
-    tri = np.asarray(triangles)
-    if tri.dtype not in (np.int32, np.int64):
-        tri = tri.astype(np.int64)
-    tri = np.ascontiguousarray(tri)
-    n = max(int(n_points), 1)
-    with _threads_for(tri.shape[0]):
-        return _number_edges(tri, n, min(max(tri.shape[0] // 65536, 1), 64), _bucket_shift(n))
-
-
-def _number_edges(tri: NDArray[np.integer], n: int, n_chunks: int, shift: int
-                  ) -> tuple[NDArray[np.integer], NDArray[np.int64], NDArray[np.int64]]:
-    """:func:`number_edges` with ``n_chunks`` chunks of triangles and buckets of
-    ``2^shift`` vertices (the result does not depend on either)."""
-    m = tri.shape[0]
-    n_buckets = ((n - 1) >> shift) + 1
-    bucket_counts = np.zeros((n_chunks, n_buckets), dtype=np.int64)
-    _count_buckets(tri, shift, bucket_counts)
-    offsets, starts = _bucket_offsets(bucket_counts)
-    lo = np.empty(3 * m, dtype=np.uint16 if shift <= 16 else np.int32)  # offset in bucket
-    hi = np.empty(3 * m, dtype=tri.dtype)
-    slot = np.empty(3 * m, dtype=np.int32 if 3 * m < 2**31 else np.int64)
-    _scatter(tri, shift, offsets, lo, hi, slot)
-    n_unique = np.empty(n_buckets, dtype=np.int64)
-    _sort_buckets(starts, shift, lo, hi, slot, n_unique)
-    first = np.zeros(n_buckets + 1, dtype=np.int64)
-    np.cumsum(n_unique, out=first[1:])
-    n_edges = int(first[-1])
-    edges = np.empty((n_edges, 2), dtype=tri.dtype)
-    counts = np.empty(n_edges, dtype=np.int64)
-    tri_edges = np.empty((m, 3), dtype=np.int64)
-    _collect_edges(starts, first, shift, lo, hi, slot, edges, counts, tri_edges.reshape(-1))
-    return edges, tri_edges, counts
-
-
-def _bucket_shift(n: int) -> int:
-    """``s`` with buckets of ``2^s >= 1024`` vertices, at most about 4096 buckets."""
-    s = 10
-    while (n >> s) > 4096:
-        s += 1
-    return s
-
-
-@njit(parallel=True, cache=True)
-def _count_buckets(tri, shift, counts):
-    """``counts[c, b]``: half-edges of chunk ``c`` whose smaller vertex is in bucket ``b``."""
-    n_chunks = counts.shape[0]
-    m = tri.shape[0]
-    for c in prange(n_chunks):
-        for t in range(c * m // n_chunks, (c + 1) * m // n_chunks):
-            for i in range(3):
-                counts[c, min(tri[t, i], tri[t, (i + 1) % 3]) >> shift] += 1
-
-
-@njit(cache=True)
-def _bucket_offsets(counts):
-    """First slot of every (chunk, bucket) pair, and bucket starts ``(B + 1,)``."""
-    n_chunks, n_buckets = counts.shape
-    offsets = np.empty_like(counts)
-    starts = np.empty(n_buckets + 1, dtype=np.int64)
-    total = 0
-    for b in range(n_buckets):
-        starts[b] = total
-        for c in range(n_chunks):
-            offsets[c, b] = total
-            total += counts[c, b]
-    starts[n_buckets] = total
-    return offsets, starts
-
-
-@njit(parallel=True, cache=True)
-def _scatter(tri, shift, offsets, lo, hi, slot):
-    """Half-edges into their bucket slots: ``lo`` (offset in the bucket), ``hi`` and the
-    half-edge's index ``3 t + i``."""
-    n_chunks = offsets.shape[0]
-    m = tri.shape[0]
-    for c in prange(n_chunks):
-        pos = offsets[c].copy()
-        for t in range(c * m // n_chunks, (c + 1) * m // n_chunks):
-            for i in range(3):
-                a = tri[t, i]
-                b = tri[t, (i + 1) % 3]
-                v = min(a, b)
-                k = v >> shift
-                p = pos[k]
-                pos[k] = p + 1
-                lo[p] = v - (k << shift)
-                hi[p] = max(a, b)
-                slot[p] = 3 * t + i
-
-
-@njit(parallel=True, cache=True)
-def _sort_buckets(starts, shift, lo, hi, slot, n_unique):
-    """Sort every bucket's half-edges by ``(lo, hi)`` in place; count distinct pairs.
-
-    A counting sort by ``lo`` into bucket-local buffers, then an insertion sort of each
-    vertex's few ``hi`` values (an argsort for long runs at high-degree vertices).
-    """
-    width = 1 << shift
-    for b in prange(starts.shape[0] - 1):
-        s = starts[b]
-        e = starts[b + 1]
-        fill = np.zeros(width + 1, dtype=np.int64)
-        for p in range(s, e):
-            fill[lo[p] + 1] += 1
-        for v in range(width):
-            fill[v + 1] += fill[v]
-        th = np.empty(e - s, dtype=hi.dtype)
-        ts = np.empty(e - s, dtype=slot.dtype)
-        for p in range(s, e):
-            q = fill[lo[p]]
-            fill[lo[p]] = q + 1
-            th[q] = hi[p]
-            ts[q] = slot[p]
-        u = 0
-        q0 = 0
-        for v in range(width):  # after the fill, fill[v] is the end of vertex v's run
-            q1 = fill[v]
-            if q1 - q0 > 16:
-                order = np.argsort(th[q0:q1], kind="mergesort")
-                th[q0:q1] = th[q0:q1][order]
-                ts[q0:q1] = ts[q0:q1][order]
-            else:
-                for p in range(q0 + 1, q1):
-                    x = th[p]
-                    y = ts[p]
-                    q = p - 1
-                    while q >= q0 and th[q] > x:
-                        th[q + 1] = th[q]
-                        ts[q + 1] = ts[q]
-                        q -= 1
-                    th[q + 1] = x
-                    ts[q + 1] = y
-            for q in range(q0, q1):
-                lo[s + q] = v
-                hi[s + q] = th[q]
-                slot[s + q] = ts[q]
-                u += int(q == q0 or th[q] != th[q - 1])
-            q0 = q1
-        n_unique[b] = u
-
-
-@njit(parallel=True, cache=True)
-def _collect_edges(starts, first, shift, lo, hi, slot, edges, counts, tri_edges):
-    """Distinct edges with their multiplicities, and every half-edge's edge id into
-    ``tri_edges (3 M,)`` (a scatter, local when the input numbering is)."""
-    n_buckets = starts.shape[0] - 1
-    for b in prange(n_buckets):
-        g = first[b] - 1
-        base = b << shift
-        end = starts[b + 1]
-        for p in range(starts[b], end):
-            _prefetch_write(tri_edges, slot[min(p + 4 * AHEAD, end - 1)])
-            if p == starts[b] or lo[p] != lo[p - 1] or hi[p] != hi[p - 1]:
-                g += 1
-                edges[g, 0] = base + lo[p]
-                edges[g, 1] = hi[p]
-                counts[g] = 0
-            counts[g] += 1
-            tri_edges[slot[p]] = g
-
-
-# ----------------------------------------------------------------------------------------
 # new points and children
 
 
@@ -427,7 +187,7 @@ def edge_points(points: NDArray[np.float64], edges: NDArray[np.integer], per_edg
     ``out`` is ``(N + E * per_edge, 2)``; the points of edge ``g = (a, b)``, ``a < b``, are at
     ``N + g * per_edge + j``, listed from ``a``.
     """
-    with _threads_for(edges.shape[0]):
+    with threads_for(edges.shape[0]):
         _edge_points(points, edges, per_edge, out)
 
 
@@ -441,17 +201,13 @@ def _edge_points(points, edges, per_edge, out):
             out[i, 0] = points[i, 0]
             out[i, 1] = points[i, 1]
         for g in range(c * CHUNK, min(n_edges, (c + 1) * CHUNK)):
-            _prefetch(points, edges[min(g + AHEAD, n_edges - 1), 1])
+            prefetch(points, edges[min(g + AHEAD, n_edges - 1), 1])
             a = edges[g, 0]
             b = edges[g, 1]
-            for k in range(2):
-                pa = points[a, k]
-                pb = points[b, k]
-                if per_edge == 2:
-                    out[n + 2 * g, k] = (2.0 * pa + pb) / 3.0
-                    out[n + 2 * g + 1, k] = (pa + 2.0 * pb) / 3.0
-                else:
-                    out[n + g, k] = (pa + pb) * 0.5
+            for j in range(per_edge):
+                for k in range(2):
+                    out[n + g * per_edge + j, k] = edge_point(points[a, k], points[b, k], j,
+                                                              per_edge)
 
 
 @njit(cache=True)
@@ -491,13 +247,15 @@ def _frame_tables(tables, per_edge):
 
 def emit(points: NDArray[np.float64], triangles: NDArray[np.integer],
          tri_edges: NDArray[np.integer], per_edge: int, forms: NDArray[np.float64],
-         lut: NDArray[np.int8], tables: NDArray[np.int8], out: NDArray[np.integer]
-         ) -> NDArray[np.bool_]:
+         lut: NDArray[np.int8], tables: NDArray[np.int8], out: NDArray[np.integer],
+         buckets: EdgeBuckets | None = None) -> NDArray[np.bool_]:
     """Children of every triangle into ``out (M * T, 3)``; see the module docstring.
 
     ``tri_edges (M, 3)`` numbers edge ``(v_i, v_{i+1})`` of each triangle; its points are
     ``N + tri_edges * per_edge + j`` (from the smaller vertex). ``forms (F, 3)``, ``lut``
-    and ``tables (R, T, 3)`` are a :class:`qdrefine.schemes.Scheme`'s.
+    and ``tables (R, T, 3)`` are a :class:`qdrefine.schemes.Scheme`'s. With ``buckets``,
+    ``tri_edges`` is ``buckets.local`` and the global ids are completed on the fly
+    (:mod:`qdrefine.numbering`).
 
     Returns :func:`rounding_suspects` ``(M,) bool`` for lattice ``per_edge + 1``, computed in
     the same sweep (the corners are loaded anyway).
@@ -505,14 +263,19 @@ def emit(points: NDArray[np.float64], triangles: NDArray[np.integer],
     if not out.flags.c_contiguous:
         raise ValueError("emit: out must be C-contiguous")
     suspect = np.empty(triangles.shape[0], dtype=np.bool_)
-    with _threads_for(triangles.shape[0]):
-        _emit(points, triangles, tri_edges, per_edge, forms, lut,
+    first, shift = (_GLOBAL, 62) if buckets is None else (buckets.first, buckets.shift)
+    with threads_for(triangles.shape[0]):
+        _emit(points, triangles, tri_edges, first, shift, per_edge, forms, lut,
               _frame_tables(tables, per_edge), out.reshape(-1), suspect)
     return suspect
 
 
+_GLOBAL = np.zeros(1, dtype=np.int64)  # ``first`` when tri_edges are global ids already
+
+
 @njit(parallel=True, cache=True)
-def _emit(points, triangles, tri_edges, per_edge, forms, lut, frames, out, suspect):
+def _emit(points, triangles, tri_edges, first, shift, per_edge, forms, lut, frames, out,
+          suspect):
     m = triangles.shape[0]
     n = points.shape[0]
     width = frames.shape[2]  # 3 T entries per (labelling, row)
@@ -525,7 +288,7 @@ def _emit(points, triangles, tri_edges, per_edge, forms, lut, frames, out, suspe
         for t in range(ch * CHUNK, min(m, (ch + 1) * CHUNK)):
             ahead = min(t + AHEAD, m - 1)
             for i in range(3):
-                _prefetch(points, triangles[ahead, i])
+                prefetch(points, triangles[ahead, i])
             v0 = triangles[t, 0]
             v1 = triangles[t, 1]
             v2 = triangles[t, 2]
@@ -552,7 +315,7 @@ def _emit(points, triangles, tri_edges, per_edge, forms, lut, frames, out, suspe
                 a = triangles[t, i]
                 b = triangles[t, (i + 1) % 3]
                 loc[i] = a
-                base = n + tri_edges[t, i] * per_edge
+                base = n + (first[min(a, b) >> shift] + tri_edges[t, i]) * per_edge
                 back = int(a > b)  # stored from the smaller vertex: reverse when walking down
                 for j in range(per_edge):
                     loc[3 + per_edge * i + j] = base + j + back * (per_edge - 1 - 2 * j)
@@ -573,8 +336,9 @@ def rounding_suspects(points, triangles, lattice):
     ``A / lattice**2`` (``A``: the parent's doubled area). Rounding a new point moves it by at
     most ``d = 4 eps C`` per coordinate (``C``: the largest coordinate magnitude), which
     changes a child's doubled area by at most ``3 sqrt(2) L d + 6 d**2`` (``L``: the parent's
-    longest edge, bounding every child edge). A triangle is a suspect unless ``A`` beats that
-    change with a margin of 8, after allowing ``4 L d`` for the float error of ``A`` itself.
+    longest edge, bounding every child edge; bounded in turn by the largest ``|dx| + |dy|``
+    of an edge). A triangle is a suspect unless ``A`` beats that change with a margin of 8,
+    after allowing ``4 L d`` for the float error of ``A`` itself.
     """
     m = triangles.shape[0]
     out = np.zeros(m, dtype=np.bool_)
@@ -587,13 +351,14 @@ def rounding_suspects(points, triangles, lattice):
 
 @njit(inline="always", cache=True)
 def _suspect(ax, ay, bx, by, cx, cy, lattice):
-    """One triangle of :func:`rounding_suspects`."""
+    """One triangle of :func:`rounding_suspects`; ``L`` is bounded by the largest
+    ``|dx| + |dy|`` of an edge (no square root; a larger ``L`` only adds suspects)."""
     eps = 2.220446049250313e-16
-    big = max(abs(ax), abs(ay), abs(bx), abs(by), abs(cx), abs(cy))
+    big = max(max(abs(ax), abs(ay)), max(max(abs(bx), abs(by)), max(abs(cx), abs(cy))))
     ux, uy, wx, wy = bx - ax, by - ay, cx - ax, cy - ay
     vx, vy = cx - bx, cy - by
     area = abs(ux * wy - uy * wx)
-    longest = np.sqrt(max(ux * ux + uy * uy, wx * wx + wy * wy, vx * vx + vy * vy))
+    longest = max(abs(ux) + abs(uy), max(abs(wx) + abs(wy), abs(vx) + abs(vy)))
     d = 4.0 * eps * big
     change = 3.0 * np.sqrt(2.0) * longest * d + 6.0 * d * d
     return area <= 8.0 * lattice * lattice * change + 4.0 * longest * d

@@ -7,9 +7,10 @@ import operator
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .kernels import edge_points, emit, number_edges, rounding_suspects
+from .kernels import emit, rounding_suspects
 from .memory import check_memory
 from .mesh import Mesh, edge_ids, index_dtype
+from .numbering import bucket_points, sort_edges
 from .predicates import orient_signs
 from .schemes import Scheme, get_scheme
 
@@ -108,17 +109,19 @@ def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
     k = sch.stencil.per_edge
     t = mesh.triangles
     n = mesh.n_points
-    edges, tri_edges, _ = number_edges(t, n)
-    n_new = n + k * edges.shape[0]
+    buckets = sort_edges(t, n)
+    n_new = n + k * buckets.n_edges
     points = np.empty((n_new, 2), dtype=np.float64)
-    edge_points(mesh.points, edges, k, points)
+    bucket_points(mesh.points, buckets, k, points)
     triangles = np.empty((t.shape[0] * sch.n_children, 3), dtype=index_dtype(n_new))
-    suspect = emit(mesh.points, t, tri_edges, k, sch.forms, sch.lut, sch.tables, triangles)
+    suspect = emit(mesh.points, t, buckets.local, k, sch.forms, sch.lut, sch.tables, triangles,
+                   buckets)
     if strict:
         check_rounding(mesh.points, t, points, triangles, k, suspect=suspect)
     cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
     new_edges, edge_tags = None, None
     if mesh.edges is not None:
+        edges, _ = buckets.edges()
         new_edges, edge_tags = split_tagged_edges(mesh.edges, mesh.edge_tags, edges, n, k)
         new_edges = new_edges.astype(triangles.dtype)
     return Mesh._trusted(points, triangles, cell_tags, new_edges, edge_tags)

@@ -1,0 +1,76 @@
+"""Low-level support shared by the compiled kernels: work sizes, the thread switch for small
+inputs, and software prefetch (an LLVM intrinsic numba does not expose)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numba
+from llvmlite import binding as llvm
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "threads_for", "prefetch", "prefetch_write"]
+
+CHUNK = 4096  # triangles per parallel work item
+AHEAD = 8  # software prefetch distance (triangles or edges) for gathers of random rows
+PARALLEL_MIN = 32768  # triangles below which a pass runs on the calling thread only
+
+
+@contextmanager
+def threads_for(n_items: int) -> Iterator[None]:
+    """One numba thread for small inputs: waking the pool costs more than the work (and far
+    more on a busy machine, where a parallel region waits for every thread to be scheduled).
+    ``numba.set_num_threads`` is per calling thread, so this is safe under threads."""
+    if n_items >= PARALLEL_MIN:
+        yield
+        return
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
+# the intrinsic's name carries the pointer type: opaque pointers from LLVM 15 on
+_PREFETCH = "llvm.prefetch.p0" if llvm.llvm_version_info >= (15,) else "llvm.prefetch.p0i8"
+
+
+def _prefetch_codegen(write: int):
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        row = context.cast(builder, args[1], signature.args[1], types.intp)
+        idx = [row] + [context.get_constant(types.intp, 0)] * (aryty.ndim - 1)
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, idx, wraparound=False)
+        i8p = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, _PREFETCH)
+        # read or write access, high temporal locality, data cache
+        builder.call(fn, [builder.bitcast(ptr, i8p), i32(write), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return codegen
+
+
+@intrinsic
+def prefetch(typingctx, arr, i):
+    """Hint the CPU to load row ``i`` of ``arr`` (LLVM ``llvm.prefetch``; never faults).
+
+    Gathers of point rows through shuffled vertex indices are latency bound: one triangle's
+    work is too long for the out-of-order window to overlap the next triangle's misses.
+    """
+    return types.void(arr, i), _prefetch_codegen(0)
+
+
+@intrinsic
+def prefetch_write(typingctx, arr, i):
+    """:func:`prefetch` for a row about to be written (scatters through shuffled ids)."""
+    return types.void(arr, i), _prefetch_codegen(1)
+
+
