@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from oracle import exact, orient
-from qdrefine.predicates import form_sign, new_scratch, orient_sign, orient_signs
+from qdrefine.predicates import congruent, form_sign, new_scratch, orient_sign, orient_signs
 from shapes import coordinate
 
 points = st.tuples(coordinate, coordinate)
@@ -71,3 +71,27 @@ def test_orient_signs_matches_orient_sign(tris):
     line = np.array([[x, x / 3] for t in tris for x in (t[0][0], t[1][0], t[2][0])])
     expected = [sign(orient(*(exact(p) for p in line[i]))) for i in idx]
     assert orient_signs(line, idx).tolist() == expected
+
+
+lattice = st.builds(lambda i, e: i * 2.0**e, st.integers(-8, 8), st.integers(-60, 60))
+anywhere = st.one_of(points, st.tuples(lattice, lattice))
+
+
+@settings(max_examples=600, deadline=None)
+@given(anywhere, anywhere, anywhere, anywhere, st.booleans())
+def test_congruent_proves_equal_lengths(a, b, c, d, mirror):
+    """``congruent`` never claims a tie that is not one; it finds a lattice's mirrored legs."""
+    if mirror:  # d - c = (b - a) with the coordinates swapped and a sign flipped, exactly
+        d = (c[0] + (a[1] - b[1]), c[1] + (b[0] - a[0]))
+    ea, eb, ec, ed = exact(a), exact(b), exact(c), exact(d)
+    tie = (eb[0] - ea[0]) ** 2 + (eb[1] - ea[1]) ** 2 == (ed[0] - ec[0]) ** 2 + (ed[1] - ec[1]) ** 2
+    if congruent(*a, *b, *c, *d):
+        assert tie
+
+
+def test_congruent_finds_the_ties_of_a_grid():
+    h = 0.1
+    for i in range(1, 30):  # the legs of the right isosceles triangles of a structured grid
+        x, y = i * h, (i + 1) * h
+        assert congruent(x, x, y, x, x, x, x, y)
+        assert congruent(y, y, x, y, y, x, y, y)

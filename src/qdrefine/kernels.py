@@ -34,6 +34,7 @@ from .predicates import (
     FILTER,
     SCRATCH,
     _factor,
+    congruent,
     factor_forms,
     form_sign_slow,
     length_filter,
@@ -87,7 +88,21 @@ def _strict_labels() -> np.ndarray:
     return out
 
 
+def _apex_labels() -> np.ndarray:
+    """``(27,)``: for sign codes with one longest edge and the other two tied (an isosceles
+    triangle with apex ``O``, e.g. every triangle of a right isosceles grid), the local index
+    of ``O``; -1 for every other code."""
+    out = np.full(27, -1, dtype=np.int64)
+    for o in range(3):
+        e = np.zeros(3)
+        e[o] = 1.0  # the edge opposite O is the longest, the other two are equal
+        s01, s02, s12 = (int(np.sign(e[i] - e[j])) for i, j in ((0, 1), (0, 2), (1, 2)))
+        out[(s01 + 1) + 3 * (s02 + 1) + 9 * (s12 + 1)] = o
+    return out
+
+
 _STRICT = _strict_labels()
+_APEX = _apex_labels()
 
 
 @njit(cache=True)
@@ -108,15 +123,23 @@ def _canonical(x0, y0, x1, y1, x2, y2):
     s01 = length_filter(x2 - x1, y2 - y1, x0 - x2, y0 - y2)  # sign(e0 - e1)
     s02 = length_filter(x2 - x1, y2 - y1, x1 - x0, y1 - y0)  # sign(e0 - e2)
     s12 = length_filter(x0 - x2, y0 - y2, x1 - x0, y1 - y0)  # sign(e1 - e2)
-    if s01 == 0:
+    if s01 == 0 and not congruent(x1, y1, x2, y2, x2, y2, x0, y0):
         s01 = length_sign_slow(x1, y1, x2, y2, x2, y2, x0, y0)
-    if s02 == 0:
+    if s02 == 0 and not congruent(x1, y1, x2, y2, x0, y0, x1, y1):
         s02 = length_sign_slow(x1, y1, x2, y2, x0, y0, x1, y1)
-    if s12 == 0:
+    if s12 == 0 and not congruent(x2, y2, x0, y0, x0, y0, x1, y1):
         s12 = length_sign_slow(x2, y2, x0, y0, x0, y0, x1, y1)
     packed = _STRICT[(s01 + 1) + 3 * (s02 + 1) + 9 * (s12 + 1)]
     if packed >= 0:
         return packed % 3, (packed // 3) % 3, packed // 9
+    o = _APEX[(s01 + 1) + 3 * (s02 + 1) + 9 * (s12 + 1)]
+    if o >= 0:  # |OM| = |ON|: M is the lexicographically smaller endpoint
+        j = (o + 1) % 3
+        k = (o + 2) % 3
+        if _lex_less(_pick(j, x0, x1, x2), _pick(j, y0, y1, y2),
+                     _pick(k, x0, x1, x2), _pick(k, y0, y1, y2)):
+            return j, k, o
+        return k, j, o
     return _tied_labels(x0, y0, x1, y1, x2, y2, s01, s02, s12)
 
 

@@ -322,11 +322,36 @@ def _length_sign_stage2(px, py, qx, qy):
     b2, k4 = _exact_sum(ay, by)
     if not (k3 and k4):
         return UNDECIDED
+    if a1 == -a2 and b1 == b2:  # congruent legs, {|px|, |py|} = {|qx|, |qy|}: a grid's ties
+        return 0
     return product_sign(a1, b1, -a2, b2)
 
 
 _LENGTH_I = np.array([0, 1, 2, 3], dtype=np.int64)
 _LENGTH_C = np.array([1.0, 1.0, -1.0, -1.0])
+
+
+@njit(inline="always", cache=True)
+def _sterbenz(a, b):
+    """``a - b`` is exact in float64: by Sterbenz's lemma when ``b / 2 <= a <= 2 b`` (same
+    sign), or trivially when either is 0."""
+    return a == 0.0 or b == 0.0 or ((a > 0.0) == (b > 0.0) and abs(a) <= 2.0 * abs(b)
+                                    and abs(b) <= 2.0 * abs(a))
+
+
+@njit(inline="always", cache=True)
+def congruent(ax, ay, bx, by, cx, cy, dx, dy):
+    """``True`` proves ``|b - a| = |d - c|``: the coordinate differences are exact and equal
+    up to order and sign (the ties of every structured grid, decided without a call to
+    :func:`length_sign_slow`). ``False`` proves nothing."""
+    if not (_sterbenz(bx, ax) and _sterbenz(by, ay) and _sterbenz(dx, cx)
+            and _sterbenz(dy, cy)):
+        return False
+    px = abs(bx - ax)
+    py = abs(by - ay)
+    qx = abs(dx - cx)
+    qy = abs(dy - cy)
+    return (px == qx and py == qy) or (px == qy and py == qx)
 
 
 @njit(cache=True)
