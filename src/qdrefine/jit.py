@@ -7,13 +7,15 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 import numba
+import numpy as np
 from llvmlite import binding as llvm
 from llvmlite import ir
-from numba import types
+from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "threads_for", "prefetch", "prefetch_write"]
+__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "threads_for", "prefetch", "prefetch_write",
+           "unsigned"]
 
 CHUNK = 4096  # triangles per parallel work item
 AHEAD = 8  # software prefetch distance (triangles or edges) for gathers of random rows
@@ -74,3 +76,10 @@ def prefetch_write(typingctx, arr, i):
     return types.void(arr, i), _prefetch_codegen(1)
 
 
+
+
+@njit(inline="always", cache=True)
+def unsigned(i):
+    """``i`` (known ``>= 0``) as ``uint64``, for hot array indices: numba checks every signed
+    index for wraparound (a compare and a select per access), an unsigned one never."""
+    return np.uint64(i)

@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from .jit import AHEAD, CHUNK, prefetch, threads_for
+from .jit import AHEAD, CHUNK, prefetch, threads_for, unsigned
 from .numbering import EdgeBuckets, edge_point, number_edges
 from .predicates import (
     FILTER,
@@ -235,7 +235,7 @@ def _edge_points(points, edges, per_edge, out):
 
 @njit(cache=True)
 def _frame_tables(tables, per_edge):
-    """``(9, R, 3 T) int8``: the children of every table row as indices into a
+    """``(9, R, 3 T) uint8``: the children of every table row as indices into a
     triangle's *own* local points, for each labelling ``code = iM * 3 + iN``.
 
     Own local points: ``v0, v1, v2``, then the ``per_edge`` points of each edge
@@ -243,8 +243,8 @@ def _frame_tables(tables, per_edge):
     a reflection of the input (``iN != iM + 1 mod 3``) are flipped (counter-clockwise).
     """
     n_rows, n_children, _ = tables.shape
-    out = np.zeros((9, n_rows, 3 * n_children), dtype=np.int8)
-    own = np.empty(3 + 3 * per_edge, dtype=np.int8)  # canonical local -> own local
+    out = np.zeros((9, n_rows, 3 * n_children), dtype=np.uint8)
+    own = np.empty(3 + 3 * per_edge, dtype=np.uint8)  # canonical local -> own local
     for im in range(3):
         for jn in range(3):
             if im == jn:
@@ -289,7 +289,8 @@ def emit(points: NDArray[np.float64], triangles: NDArray[np.integer],
     first, shift = (_GLOBAL, 62) if buckets is None else (buckets.first, buckets.shift)
     with threads_for(triangles.shape[0]):
         _emit(points, triangles, tri_edges, first, shift, per_edge, forms, lut,
-              _frame_tables(tables, per_edge), out.reshape(-1), suspect)
+              _frame_tables(tables, per_edge).reshape(-1), 3 * tables.shape[1], out.reshape(-1),
+              suspect)
     return suspect
 
 
@@ -297,11 +298,14 @@ _GLOBAL = np.zeros(1, dtype=np.int64)  # ``first`` when tri_edges are global ids
 
 
 @njit(parallel=True, cache=True)
-def _emit(points, triangles, tri_edges, first, shift, per_edge, forms, lut, frames, out,
-          suspect):
+def _emit(points, triangles, tri_edges, first, shift, per_edge, forms, lut, frames, width,
+          out, suspect):
+    """``frames``: :func:`_frame_tables` flattened, ``width = 3 T`` entries per (labelling,
+    row); ``out`` flat. The output loop indexes with :func:`unsigned` (signed indices cost
+    a sixth of this kernel in wraparound checks)."""
     m = triangles.shape[0]
     n = points.shape[0]
-    width = frames.shape[2]  # 3 T entries per (labelling, row)
+    n_rows = frames.shape[0] // (9 * width)
     factors = factor_forms(forms)
     lattice = float(per_edge + 1)
     n_chunks = (m + CHUNK - 1) // CHUNK
@@ -342,11 +346,10 @@ def _emit(points, triangles, tri_edges, first, shift, per_edge, forms, lut, fram
                 back = int(a > b)  # stored from the smaller vertex: reverse when walking down
                 for j in range(per_edge):
                     loc[3 + per_edge * i + j] = base + j + back * (per_edge - 1 - 2 * j)
-            lab = im * 3 + jn
-            row = lut[code]
+            f0 = ((im * 3 + jn) * n_rows + lut[code]) * width
             o = t * width
             for q in range(width):
-                out[o + q] = loc[frames[lab, row, q]]
+                out[unsigned(o + q)] = loc[frames[unsigned(f0 + q)]]
 
 
 @njit(parallel=True, cache=True)

@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from .jit import AHEAD, prefetch, prefetch_write, threads_for
+from .jit import AHEAD, prefetch, prefetch_write, threads_for, unsigned
 
 __all__ = ["EdgeBuckets", "sort_edges", "number_edges", "bucket_points", "edge_point"]
 
@@ -159,7 +159,7 @@ def _count_buckets(tri, shift, counts):
     for c in prange(n_chunks):
         for t in range(c * m // n_chunks, (c + 1) * m // n_chunks):
             for i in range(3):
-                counts[c, min(tri[t, i], tri[t, (i + 1) % 3]) >> shift] += 1
+                counts[c, unsigned(min(tri[t, i], tri[t, (i + 1) % 3]) >> shift)] += 1
 
 
 @njit(cache=True)
@@ -192,8 +192,8 @@ def _scatter(tri, shift, offsets, lo, hi, slot):
                 b = tri[t, (i + 1) % 3]
                 v = min(a, b)
                 k = v >> shift
-                p = pos[k]
-                pos[k] = p + 1
+                p = unsigned(pos[k])
+                pos[k] += 1
                 lo[p] = v - (k << shift)
                 hi[p] = max(a, b)
                 slot[p] = 3 * t + i
@@ -214,14 +214,14 @@ def _sort_buckets(starts, shift, lo, hi, slot, local, n_unique):
         e = starts[b + 1]
         fill = np.zeros(width + 1, dtype=np.int64)
         for p in range(s, e):
-            fill[lo[p] + 1] += 1
+            fill[unsigned(lo[p] + 1)] += 1
         for v in range(width):
             fill[v + 1] += fill[v]
         th = np.empty(e - s, dtype=hi.dtype)
         ts = np.empty(e - s, dtype=slot.dtype)
         for p in range(s, e):
-            q = fill[lo[p]]
-            fill[lo[p]] = q + 1
+            q = unsigned(fill[lo[p]])
+            fill[lo[p]] += 1
             th[q] = hi[p]
             ts[q] = slot[p]
         u = -1
@@ -251,7 +251,7 @@ def _sort_buckets(starts, shift, lo, hi, slot, local, n_unique):
                     hi[s + u] = th[q]
                     slot[s + u] = 0
                 slot[s + u] += 1
-                local[ts[q]] = u
+                local[unsigned(ts[q])] = u
             q0 = q1
         n_unique[b] = u + 1
 
@@ -290,12 +290,12 @@ def _bucket_points(points, starts, first, shift, lo, hi, per_edge, out):
         n_b = first[b + 1] - first[b]
         for u in range(n_b):
             prefetch(points, hi[s + min(u + AHEAD, n_b - 1)])
-            a = base + lo[s + u]
-            c = hi[s + u]
+            a = unsigned(base + lo[s + u])
+            c = unsigned(hi[s + u])
             g = n + (first[b] + u) * per_edge
             for j in range(per_edge):
                 for k in range(2):
-                    out[g + j, k] = edge_point(points[a, k], points[c, k], j, per_edge)
+                    out[unsigned(g + j), k] = edge_point(points[a, k], points[c, k], j, per_edge)
 
 
 @njit(inline="always", cache=True)
