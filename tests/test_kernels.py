@@ -367,3 +367,20 @@ def test_kernels_are_bit_identical_for_1_and_2_threads():
             numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
         results.append([r.tobytes() for r in row])
     assert results[0] == results[1]
+
+
+def test_number_edges_refuses_indices_out_of_range():
+    for bad in ([[0, 1, -1]], [[0, 1, 3]]):
+        with pytest.raises(ValueError, match=r"vertex indices must be in \[0, 3\)"):
+            number_edges(np.array(bad), 3)
+
+
+def test_emit_refuses_a_table_with_missing_rows():
+    mesh = examples.square(2)
+    sch = get_scheme("7t-qd")
+    _, tri_edges, _ = number_edges(mesh.triangles, mesh.n_points)
+    lut = sch.lut.copy()
+    lut[0] = -1
+    out = np.empty((mesh.n_triangles * sch.n_children, 3), dtype=np.int64)
+    with pytest.raises(ValueError, match="without a row"):
+        emit(mesh.points, mesh.triangles, tri_edges, 2, sch.forms, lut, sch.tables, out)

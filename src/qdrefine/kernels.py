@@ -285,6 +285,8 @@ def emit(points: NDArray[np.float64], triangles: NDArray[np.integer],
     """
     if not out.flags.c_contiguous:
         raise ValueError("emit: out must be C-contiguous")
+    if lut.size and lut.min() < 0:
+        raise ValueError("emit: the scheme's lookup table has sign patterns without a row")
     suspect = np.empty(triangles.shape[0], dtype=np.bool_)
     first, shift = (_GLOBAL, 62) if buckets is None else (buckets.first, buckets.shift)
     with threads_for(triangles.shape[0]):

@@ -92,6 +92,9 @@ def number_edges(triangles: NDArray[np.integer], n_points: int
     Temporary memory: ``3 M`` half-edge records (bucket offset, larger vertex, index).
     """
     tri = _as_index_array(triangles)
+    if tri.size and (tri.min() < 0 or tri.max() >= n_points):
+        raise ValueError(f"number_edges: vertex indices must be in [0, {n_points}), got "
+                         f"[{tri.min()}, {tri.max()}]")
     buckets = sort_edges(tri, n_points)
     edges, counts = buckets.edges()
     return edges, buckets.global_ids(tri), counts
@@ -100,7 +103,10 @@ def number_edges(triangles: NDArray[np.integer], n_points: int
 def sort_edges(triangles: NDArray[np.integer], n_points: int, n_chunks: int | None = None,
                shift: int | None = None) -> EdgeBuckets:
     """Steps 1 and 2 of the module docstring for ``triangles (M, 3)``; ``n_chunks`` and
-    ``shift`` (default: by size) change the work split, never the result."""
+    ``shift`` (default: by size) change the work split, never the result.
+
+    Indices must be in ``[0, n_points)`` (not checked here: :func:`qdrefine.refine` passes a
+    validated :class:`~qdrefine.Mesh`; :func:`number_edges` checks)."""
     tri = _as_index_array(triangles)
     n = max(int(n_points), 1)
     m = tri.shape[0]
