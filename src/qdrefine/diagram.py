@@ -41,8 +41,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from .kernels import canonical, classify
-from .predicates import SCRATCH
+from .kernels import canonical, decide
+from .predicates import SCRATCH, factor_forms
 from .schemes import SCHEMES
 from .stencil import SEVEN, fan
 
@@ -132,8 +132,9 @@ def to_diagram(vertices: ArrayLike) -> NDArray[np.float64]:
 def _rows_exact(x, y, forms, lut):
     out = np.empty(x.shape[0], dtype=np.int64)
     buf = np.empty(SCRATCH)
+    factors = factor_forms(forms)
     for i in range(x.shape[0]):
-        out[i] = classify(0.0, 0.0, 1.0, 0.0, x[i], y[i], forms, lut, buf)[3]
+        out[i] = decide(0.0, 0.0, 1.0, 0.0, x[i], y[i], forms, factors, lut, buf)[3]
     return out
 
 
@@ -157,7 +158,7 @@ def scheme_fans(x: ArrayLike, y: ArrayLike, scheme: str, exact: bool = True) -> 
     scheme : {"7t-qd", "7t-le", "7t-d"}
     exact : bool
         ``True``: the exact decision of the refinement kernels for the triangle
-        ``(0,0), (1,0), (x, y)`` (:func:`qdrefine.kernels.classify`); ``False``: float
+        ``(0,0), (1,0), (x, y)`` (:func:`qdrefine.kernels.decide`); ``False``: float
         evaluation of the forms (faster; only for points not on a decision arc).
     """
     if scheme not in _SCHEMES_7T:

@@ -31,18 +31,17 @@ from numpy.typing import NDArray
 from .jit import AHEAD, CHUNK, prefetch, threads_for, unsigned
 from .numbering import EdgeBuckets, edge_point, number_edges
 from .predicates import (
-    FILTER,
     SCRATCH,
-    _factor,
     congruent,
     factor_forms,
+    form_filter,
     form_sign_slow,
     length_filter,
     length_sign_slow,
 )
 
-__all__ = ["number_edges", "edge_points", "emit", "classify", "canonical", "rounding_suspects",
-           "CHUNK"]
+__all__ = ["number_edges", "edge_points", "emit", "classify", "decide", "canonical",
+           "rounding_suspects", "CHUNK"]
 
 # ----------------------------------------------------------------------------------------
 # labelling and classification of one triangle
@@ -165,7 +164,18 @@ def _tied_labels(x0, y0, x1, y1, x2, y2, s01, s02, s12):
 
 @njit(cache=True)
 def classify(x0, y0, x1, y1, x2, y2, forms, lut, buf):
-    """Canonical labelling and table row of one triangle: ``(iM, iN, iO, row)``."""
+    """Canonical labelling and table row of one triangle: ``(iM, iN, iO, row)``
+    (:func:`decide` with the factors of ``forms`` computed here)."""
+    return decide(x0, y0, x1, y1, x2, y2, forms, factor_forms(forms), lut, buf)
+
+
+@njit(inline="always", cache=True)
+def decide(x0, y0, x1, y1, x2, y2, forms, factors, lut, buf):
+    """Canonical labelling and table row of one triangle: ``(iM, iN, iO, row)``.
+
+    ``forms (F, 3)`` and ``lut`` are a scheme's, ``factors`` is
+    :func:`qdrefine.predicates.factor_forms` of ``forms`` (computed once per mesh) and ``buf``
+    a scratch array. The sign of every form is exact (filter, then the slow stages)."""
     im, jn, ko = _canonical(x0, y0, x1, y1, x2, y2)
     mx, my = _pick(im, x0, x1, x2), _pick(im, y0, y1, y2)
     nx, ny = _pick(jn, x0, x1, x2), _pick(jn, y0, y1, y2)
@@ -173,30 +183,14 @@ def classify(x0, y0, x1, y1, x2, y2, forms, lut, buf):
     code = 0
     power = 1
     for f in range(forms.shape[0]):
-        s = _form_filter(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1], forms[f, 2])
+        s = form_filter(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1], forms[f, 2])
         if s == 0:
-            ok, p1, q1, p2, q2 = _factor(int(forms[f, 0]), int(forms[f, 1]), int(forms[f, 2]))
             s = form_sign_slow(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1], forms[f, 2],
-                               float(ok), float(p1), float(q1), float(p2), float(q2), buf)
+                               factors[f, 0], factors[f, 1], factors[f, 2], factors[f, 3],
+                               factors[f, 4], buf)
         code += (s + 1) * power
         power *= 3
     return im, jn, ko, lut[code]
-
-
-@njit(inline="always", cache=True)
-def _form_filter(mx, my, nx, ny, ox, oy, kuu, kww, kuw):
-    """Stage 1 of :func:`qdrefine.predicates.form_sign` (0: undecided)."""
-    ux = nx - mx
-    uy = ny - my
-    wx = ox - mx
-    wy = oy - my
-    p0 = ux * wx
-    p1 = uy * wy
-    uu = ux * ux + uy * uy
-    ww = wx * wx + wy * wy
-    value = kuu * uu + kww * ww + kuw * (p0 + p1)
-    bound = FILTER * (abs(kuu) * uu + abs(kww) * ww + abs(kuw) * (abs(p0) + abs(p1)))
-    return int(value > bound) - int(value < -bound)
 
 
 # ----------------------------------------------------------------------------------------
@@ -325,20 +319,7 @@ def _emit(points, triangles, tri_edges, first, shift, per_edge, forms, lut, fram
             x1, y1 = points[v1, 0], points[v1, 1]
             x2, y2 = points[v2, 0], points[v2, 1]
             suspect[t] = _suspect(x0, y0, x1, y1, x2, y2, lattice)
-            im, jn, ko = _canonical(x0, y0, x1, y1, x2, y2)
-            mx, my = _pick(im, x0, x1, x2), _pick(im, y0, y1, y2)
-            nx, ny = _pick(jn, x0, x1, x2), _pick(jn, y0, y1, y2)
-            ox, oy = _pick(ko, x0, x1, x2), _pick(ko, y0, y1, y2)
-            code = 0
-            power = 1
-            for f in range(forms.shape[0]):
-                s = _form_filter(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1], forms[f, 2])
-                if s == 0:
-                    s = form_sign_slow(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1],
-                                       forms[f, 2], factors[f, 0], factors[f, 1],
-                                       factors[f, 2], factors[f, 3], factors[f, 4], buf)
-                code += (s + 1) * power
-                power *= 3
+            im, jn, ko, row = decide(x0, y0, x1, y1, x2, y2, forms, factors, lut, buf)
             # own local points: v0, v1, v2, then each edge (v_i, v_i+1)'s points from v_i
             for i in range(3):
                 a = triangles[t, i]
@@ -348,7 +329,7 @@ def _emit(points, triangles, tri_edges, first, shift, per_edge, forms, lut, fram
                 back = int(a > b)  # stored from the smaller vertex: reverse when walking down
                 for j in range(per_edge):
                     loc[3 + per_edge * i + j] = base + j + back * (per_edge - 1 - 2 * j)
-            f0 = ((im * 3 + jn) * n_rows + lut[code]) * width
+            f0 = ((im * 3 + jn) * n_rows + row) * width
             o = t * width
             for q in range(width):
                 out[unsigned(o + q)] = loc[frames[unsigned(f0 + q)]]

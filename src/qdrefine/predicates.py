@@ -193,12 +193,10 @@ def _differences(ax, ay, bx, by, cx, cy, buf):
     buf[6], buf[7] = _two_diff(cy, ay)
 
 
-@njit(cache=True)
-def form_sign(ax, ay, bx, by, cx, cy, kuu, kww, kuw, buf):
-    """Exact sign of ``kuu |b-a|^2 + kww |c-a|^2 + kuw (b-a).(c-a)``.
-
-    The coefficients are small integers given as floats; ``buf`` is a scratch array.
-    """
+@njit(inline="always", cache=True)
+def form_filter(ax, ay, bx, by, cx, cy, kuu, kww, kuw):
+    """Stage 1 of :func:`form_sign`: its sign from float64 arithmetic with an error bound,
+    or 0 when the filter cannot decide."""
     ux = bx - ax
     uy = by - ay
     wx = cx - ax
@@ -209,10 +207,18 @@ def form_sign(ax, ay, bx, by, cx, cy, kuu, kww, kuw, buf):
     ww = wx * wx + wy * wy
     value = kuu * uu + kww * ww + kuw * (p0 + p1)
     bound = FILTER * (abs(kuu) * uu + abs(kww) * ww + abs(kuw) * (abs(p0) + abs(p1)))
-    if value > bound:
-        return 1
-    if value < -bound:
-        return -1
+    return int(value > bound) - int(value < -bound)
+
+
+@njit(cache=True)
+def form_sign(ax, ay, bx, by, cx, cy, kuu, kww, kuw, buf):
+    """Exact sign of ``kuu |b-a|^2 + kww |c-a|^2 + kuw (b-a).(c-a)``.
+
+    The coefficients are small integers given as floats; ``buf`` is a scratch array.
+    """
+    s = form_filter(ax, ay, bx, by, cx, cy, kuu, kww, kuw)
+    if s != 0:
+        return s
     _differences(ax, ay, bx, by, cx, cy, buf)
     cc = buf[8:14]
     cc[0] = kuu
