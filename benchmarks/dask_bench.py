@@ -40,35 +40,16 @@ from pathlib import Path
 import numpy as np
 
 import qdrefine
-from qdrefine import Mesh, store
+from qdrefine import Mesh, examples, store
 from qdrefine.distributed import local_client, refine_store
 from qdrefine.kernels import number_edges
 
 
 def jittered_grid(n_triangles: float, seed: int = 0) -> Mesh:
-    """``n x n`` quads of the unit square, each cut by a random diagonal; inner points
-    jittered by up to 0.15 cell (every quad stays convex); vertices shuffled."""
+    """About ``n_triangles`` of :func:`qdrefine.examples.jittered_square`, vertices shuffled
+    (triangles in grid order)."""
     n = max(1, int(round(np.sqrt(n_triangles / 2))))
-    rng = np.random.default_rng(seed)
-    x = np.linspace(0.0, 1.0, n + 1)
-    pts = np.stack(np.meshgrid(x, x, indexing="xy"), axis=-1).reshape(-1, 2)
-    inner = (pts > 0).all(1) & (pts < 1).all(1)
-    pts[inner] += rng.uniform(-0.15, 0.15, size=(int(inner.sum()), 2)) / n
-    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
-    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
-    diag = rng.random(a.size) < 0.5
-    t1 = np.where(diag[:, None], np.stack([a, b, c], 1), np.stack([a, b, d], 1))
-    t2 = np.where(diag[:, None], np.stack([a, c, d], 1), np.stack([b, c, d], 1))
-    tris = np.concatenate([t1, t2])
-    tags = np.concatenate([diag, diag]).astype(np.int64)
-    r = np.arange(n)
-    edges = np.concatenate([
-        np.stack([idx[0, r], idx[0, r + 1]], 1), np.stack([idx[r, n], idx[r + 1, n]], 1),
-        np.stack([idx[n, r + 1], idx[n, r]], 1), np.stack([idx[r + 1, 0], idx[r, 0]], 1)])
-    perm = rng.permutation(len(pts))
-    inv = np.argsort(perm)
-    return Mesh(pts[perm], inv[tris], tags, inv[edges], np.repeat([1, 2, 3, 4], n))
+    return examples.jittered_square(n, seed, shuffle="points")
 
 
 def expected_counts(mesh: Mesh, scheme: str, levels: int) -> tuple[int, int]:

@@ -40,7 +40,7 @@ import time
 import numpy as np
 
 import qdrefine
-from qdrefine import Mesh, refine
+from qdrefine import Mesh, examples, refine
 from qdrefine.kernels import emit, number_edges
 from qdrefine.mesh import index_dtype
 
@@ -48,18 +48,15 @@ SCHEMES = qdrefine.scheme_names()
 
 
 def grid(n_triangles: float, shuffled: bool, seed: int = 0) -> Mesh:
-    n = int(round(np.sqrt(n_triangles * 1e6 / 2)))
-    x = np.linspace(0.0, 1.0, n + 1)
-    pts = np.stack(np.meshgrid(x, x, indexing="xy"), -1).reshape(-1, 2)
-    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
-    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
-    tris = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-    if shuffled:
-        rng = np.random.default_rng(seed)
-        perm = rng.permutation(len(pts))
-        pts, tris = pts[perm], np.argsort(perm)[tris][rng.permutation(len(tris))]
-    return Mesh(pts, tris)
+    """:func:`qdrefine.examples.square` with about ``n_triangles`` million triangles;
+    ``shuffled``: vertices renumbered and triangles reordered at random."""
+    mesh = examples.square(int(round(np.sqrt(n_triangles * 1e6 / 2))))
+    if not shuffled:
+        return mesh
+    rng = np.random.default_rng(seed)
+    perm = rng.permutation(mesh.n_points)
+    tris = np.argsort(perm)[mesh.triangles]
+    return Mesh(mesh.points[perm], tris[rng.permutation(len(tris))])
 
 
 def best(f, repeat: int) -> float:
@@ -136,17 +133,10 @@ def digest(mesh: Mesh) -> str:
     return h.hexdigest()[:16]
 
 
-def jittered(mesh: Mesh, seed: int = 0) -> Mesh:
-    """``mesh`` with every point moved by up to a fifth of the grid step: no ties, so the
-    schemes differ (on the right isosceles grid all 7T schemes give the same output)."""
-    h = 1.0 / (np.sqrt(mesh.n_triangles / 2))
-    rng = np.random.default_rng(seed)
-    return Mesh(mesh.points + rng.uniform(-0.2 * h, 0.2 * h, mesh.points.shape), mesh.triangles)
-
-
 def thread_independence(mesh: Mesh) -> dict:
-    """Digests of every scheme's output with 1 and all threads; use at least
-    ``2 * 65536`` triangles so that the edge numbering splits its work in chunks too."""
+    """Digests of every scheme's output with 1 and all threads; use a mesh without ties
+    (where the schemes differ) of at least ``2 * 65536`` triangles, so that the edge
+    numbering splits its work in chunks too."""
     import numba
     out = {}
     for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
@@ -455,7 +445,7 @@ def main() -> None:
                 if not args.no_peers:
                     report.setdefault("peers", {})[label] = peers(
                         mesh, refine(mesh, "7t-qd"), args.repeat)
-    report["threads"] = thread_independence(jittered(grid(0.2, True)))
+    report["threads"] = thread_independence(examples.jittered_square(316))  # 0.2 M
     if args.scale > 0:
         report["scale"] = scale_run(args.scale)
     if args.baseline:

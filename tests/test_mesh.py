@@ -54,6 +54,23 @@ def test_examples_are_valid():
     assert examples.square(3).n_triangles == 18
 
 
+def test_jittered_square_orders():
+    """The three orders are one mesh renumbered: same triangles by coordinates, same tags."""
+    def keyed(mesh):
+        corners = np.sort(mesh.points[mesh.triangles].reshape(-1, 6), axis=1)
+        order = np.lexsort(corners.T)
+        return corners[order], mesh.cell_tags[order]
+
+    meshes = [examples.jittered_square(6, seed=3, shuffle=s) for s in ("none", "points", "all")]
+    assert not np.array_equal(meshes[0].triangles, meshes[1].triangles)
+    for mesh in meshes[1:]:
+        for got, expected in zip(keyed(mesh), keyed(meshes[0]), strict=True):
+            np.testing.assert_array_equal(got, expected)
+        assert sorted(np.bincount(mesh.edge_tags)) == sorted(np.bincount(meshes[0].edge_tags))
+    with pytest.raises(ValueError, match="shuffle must be"):
+        examples.jittered_square(2, shuffle="some")
+
+
 # every check against a brute-force oracle in rational arithmetic ---------------------------
 
 def oracle_counts(p: np.ndarray, t: np.ndarray) -> dict[str, int]:

@@ -6,7 +6,7 @@ import numpy as np
 
 from .mesh import Mesh
 
-__all__ = ["plate_with_hole", "square", "OUTER", "HOLE", "LEFT", "RIGHT"]
+__all__ = ["plate_with_hole", "square", "jittered_square", "OUTER", "HOLE", "LEFT", "RIGHT"]
 
 OUTER, HOLE = 1, 2  # edge tags
 LEFT, RIGHT = 1, 2  # cell tags
@@ -48,10 +48,55 @@ def plate_with_hole(n_around: int = 32, n_rings: int = 6, radius: float = 0.4) -
 
 def square(n: int = 4) -> Mesh:
     """The unit square cut into ``2 n^2`` right isosceles triangles (many exact ties)."""
+    points, idx, (a, b, c, d) = _grid(n)
+    triangles = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return Mesh(points, triangles)
+
+
+def jittered_square(n: int = 4, seed: int = 0, shear: float = 0.0,
+                    shuffle: str = "all") -> Mesh:
+    """The unit square cut into ``n x n`` quads, each split by a random diagonal, with no ties.
+
+    Inner points move by up to 0.15 cell per coordinate, so every quad stays convex (a
+    triangle's twice-area is at least ``(1 - 2j)^2 - 2j (1 + 2j) = 0.1`` of a cell's for
+    jitter ``j = 0.15``); ``shear`` maps ``x -> x + shear y`` (needles). Boundary edges are
+    tagged 1..4 (bottom, right, top, left), cells 0/1 by diagonal. ``shuffle``: ``"all"``
+    renumbers the vertices and reorders the triangles at random, ``"points"`` only renumbers
+    the vertices, ``"none"`` keeps the grid order.
+    """
+    rng = np.random.default_rng(seed)
+    points, idx, (a, b, c, d) = _grid(n)
+    inner = (points > 0).all(1) & (points < 1).all(1)
+    points[inner] += rng.uniform(-0.15, 0.15, size=(int(inner.sum()), 2)) / n
+    points = points @ np.array([[1.0, shear], [0.0, 1.0]]).T
+    diag = rng.random(a.size) < 0.5
+    t1 = np.where(diag[:, None], np.stack([a, b, c], 1), np.stack([a, b, d], 1))
+    t2 = np.where(diag[:, None], np.stack([a, c, d], 1), np.stack([b, c, d], 1))
+    triangles = np.concatenate([t1, t2])
+    tags = np.concatenate([diag, diag]).astype(np.int64)
+    r = np.arange(n)
+    edges = np.concatenate([
+        np.stack([idx[0, r], idx[0, r + 1]], 1), np.stack([idx[r, n], idx[r + 1, n]], 1),
+        np.stack([idx[n, r + 1], idx[n, r]], 1), np.stack([idx[r + 1, 0], idx[r, 0]], 1)])
+    edge_tags = np.repeat([1, 2, 3, 4], n)
+    if shuffle not in ("all", "points", "none"):
+        raise ValueError(f"shuffle must be 'all', 'points' or 'none', got {shuffle!r}")
+    if shuffle != "none":
+        perm = rng.permutation(len(points))
+        inv = np.argsort(perm)
+        points, triangles, edges = points[perm], inv[triangles], inv[edges]
+    if shuffle == "all":
+        order = rng.permutation(len(triangles))
+        triangles, tags = triangles[order], tags[order]
+    return Mesh(points, triangles, tags, edges, edge_tags)
+
+
+def _grid(n: int) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+    """``(n+1)^2`` grid points of the unit square, their index grid, and the corners
+    ``a, b, c, d`` (counter-clockwise from the lower left) of every cell."""
     x = np.linspace(0.0, 1.0, n + 1)
     points = np.stack(np.meshgrid(x, x, indexing="xy"), axis=-1).reshape(-1, 2)
     idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
-    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
-    triangles = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-    return Mesh(points, triangles)
+    corners = (idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(),
+               idx[1:, :-1].ravel())
+    return points, idx, corners
