@@ -543,13 +543,19 @@ def _points_frame(rows: tuple[int, int], job: _Job) -> pd.DataFrame:
 
 def _triangles(job: _Job, a: int, b: int) -> NDArray[np.int64]:
     """Triangles ``a .. b - 1`` of the source, indices checked."""
-    t = job.src["triangles"][a:b].astype(np.int64)
-    bad = ((t < 0) | (t >= job.n)).any(axis=1)
+    return _vertex_rows(job, "triangles", "triangle", a, b)
+
+
+def _vertex_rows(job: _Job, name: str, what: str, a: int, b: int) -> NDArray[np.int64]:
+    """Rows ``a .. b - 1`` of the source's ``name`` array as ``int64``; ``ValueError`` naming
+    the first row (a ``what``) with a vertex index outside ``0 .. n - 1``."""
+    rows = job.src[name][a:b].astype(np.int64)
+    bad = ((rows < 0) | (rows >= job.n)).any(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{job.path}: triangle {a + i} {tuple(t[i].tolist())} has a vertex "
+        raise ValueError(f"{job.path}: {what} {a + i} {tuple(rows[i].tolist())} has a vertex "
                          f"index outside 0..{job.n - 1}")
-    return t
+    return rows
 
 
 def _corners_frame(rows: tuple[int, int], job: _Job) -> pd.DataFrame:
@@ -595,12 +601,7 @@ def _tagged_frame(rows: tuple[int, int], job: _Job) -> pd.DataFrame:
     import pandas as pd
 
     a, b = rows
-    e = job.src["edges"][a:b].astype(np.int64)
-    bad = ((e < 0) | (e >= job.n)).any(axis=1)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{job.path}: edge {a + i} {tuple(e[i].tolist())} has a vertex index "
-                         f"outside 0..{job.n - 1}")
+    e = _vertex_rows(job, "edges", "edge", a, b)
     key = e.min(axis=1) * job.n + e.max(axis=1)
     nan = np.full(b - a, np.nan)
     m3 = 3 * job.m

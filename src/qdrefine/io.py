@@ -384,7 +384,7 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
     os.close(fd)
     tmp_path = Path(tmp)
     try:
-        os.chmod(tmp_path, _file_mode(path))
+        os.chmod(tmp_path, permission_bits(path))
         yield tmp_path
         os.replace(tmp_path, path)
     except BaseException:
@@ -393,14 +393,15 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
         raise
 
 
-def _file_mode(path: Path) -> int:
-    """The permission bits of ``path`` if it exists, else those of a new file (umask)."""
+def permission_bits(path: Path, new: int = 0o666) -> int:
+    """The permission bits of ``path`` if it exists, else ``new`` less the umask (``0o666``
+    for a new file, ``0o777`` for a new directory)."""
     try:
         return path.stat().st_mode & 0o777
     except OSError:
         umask = os.umask(0)
         os.umask(umask)
-        return 0o666 & ~umask
+        return new & ~umask
 
 
 def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None) -> None:

@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .io import FORMATS, atomic_path, read, write
+from .io import FORMATS, atomic_path, permission_bits, read, write
 from .mesh import Mesh
 
 if TYPE_CHECKING:
@@ -214,7 +214,7 @@ def writing(path: PathLike) -> Iterator[Path]:
     _check_target(path)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
     try:
-        os.chmod(tmp, _directory_mode(path))
+        os.chmod(tmp, permission_bits(path, 0o777))
         yield tmp
         _replace(tmp, path)
     except BaseException:
@@ -228,16 +228,6 @@ def _check_target(path: Path) -> None:
     if path.exists() and not is_store(path):
         raise FileExistsError(f"{path}: exists and is not a qdrefine mesh store; refusing to "
                               "replace it")
-
-
-def _directory_mode(path: Path) -> int:
-    """The permission bits of the store at ``path`` if any, else those of a new directory."""
-    try:
-        return path.stat().st_mode & 0o777
-    except OSError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o777 & ~umask
 
 
 def _replace(tmp: Path, path: Path) -> None:
