@@ -5,9 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .kernels import edge_points, emit, number_edges
 from .predicates import check_coordinates, orient_signs
-from .refine import check_rounding
+from .refine import refine_arrays
 from .schemes import Scheme, get_scheme
 
 __all__ = ["partition", "partition_many"]
@@ -80,13 +79,8 @@ def partition_many(vertices: ArrayLike, scheme: str | Scheme = "7t-qd", *, stric
         raise ValueError(f"triangle {i} has zero area: {v[i].tolist()}")
     cw = signs < 0
     triangles[cw] = triangles[cw][:, [0, 2, 1]]
-    edges, tri_edges, _ = number_edges(triangles, points.shape[0])
-    all_points = np.empty((3 * n_tri + k * edges.shape[0], 2))
-    edge_points(points, edges, k, all_points)
-    out = np.empty((n_tri * n_children, 3), dtype=np.int64)
-    suspect = emit(points, triangles, tri_edges, k, sch.forms, sch.lut, sch.tables, out)
-    if strict:
-        check_rounding(points, triangles, all_points, out, k, suspect=suspect)
+    all_points, children, _ = refine_arrays(points, triangles, sch, strict)
+    out = children.astype(np.int64)
     # edges of triangle i are 3i + (0: v0v1, 1: v0v2, 2: v1v2), sorted by (min, max) vertex
     owner = np.repeat(np.arange(n_tri), n_children)[:, None]
     old = out < 3 * n_tri

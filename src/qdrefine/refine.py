@@ -10,11 +10,11 @@ from numpy.typing import ArrayLike, NDArray
 from .kernels import emit, rounding_suspects
 from .memory import check_memory
 from .mesh import Mesh, edge_ids, index_dtype
-from .numbering import bucket_points, sort_edges
+from .numbering import EdgeBuckets, bucket_points, sort_edges
 from .predicates import orient_signs
 from .schemes import Scheme, get_scheme
 
-__all__ = ["refine", "refine_with_parents", "as_count", "split_tagged_edges"]
+__all__ = ["refine", "refine_with_parents", "refine_arrays", "as_count", "split_tagged_edges"]
 
 
 def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
@@ -105,19 +105,30 @@ def as_count(value: object, name: str) -> int:
     return count
 
 
+def refine_arrays(points: NDArray[np.float64], triangles: NDArray[np.integer], sch: Scheme,
+                  strict: bool = True) -> tuple[NDArray[np.float64], NDArray, EdgeBuckets]:
+    """One uniform level on plain arrays (counter-clockwise ``triangles (M, 3)`` with indices
+    into ``points (N, 2)``): ``new_points (N + k E, 2)``, ``children (M T, 3)`` (``int32``
+    while the points fit) and the sorted edges; see :func:`refine` for the numbering and
+    ``strict``."""
+    k = sch.stencil.per_edge
+    n = points.shape[0]
+    buckets = sort_edges(triangles, n)
+    n_new = n + k * buckets.n_edges
+    new_points = np.empty((n_new, 2), dtype=np.float64)
+    bucket_points(points, buckets, k, new_points)
+    children = np.empty((triangles.shape[0] * sch.n_children, 3), dtype=index_dtype(n_new))
+    suspect = emit(points, triangles, buckets.local, k, sch.forms, sch.lut, sch.tables,
+                   children, buckets)
+    if strict:
+        check_rounding(points, triangles, new_points, children, k, suspect=suspect)
+    return new_points, children, buckets
+
+
 def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
     k = sch.stencil.per_edge
-    t = mesh.triangles
     n = mesh.n_points
-    buckets = sort_edges(t, n)
-    n_new = n + k * buckets.n_edges
-    points = np.empty((n_new, 2), dtype=np.float64)
-    bucket_points(mesh.points, buckets, k, points)
-    triangles = np.empty((t.shape[0] * sch.n_children, 3), dtype=index_dtype(n_new))
-    suspect = emit(mesh.points, t, buckets.local, k, sch.forms, sch.lut, sch.tables, triangles,
-                   buckets)
-    if strict:
-        check_rounding(mesh.points, t, points, triangles, k, suspect=suspect)
+    points, triangles, buckets = refine_arrays(mesh.points, mesh.triangles, sch, strict)
     cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
     new_edges, edge_tags = None, None
     if mesh.edges is not None:
