@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -13,9 +15,59 @@ from .check import find, index_dtype
 __all__ = ["Mesh", "edge_ids", "index_dtype"]
 
 
-def _readonly(a: NDArray | None) -> NDArray | None:
-    if a is not None:
+def _readonly(a: Any) -> Any:
+    if isinstance(a, np.ndarray):
         a.flags.writeable = False
+    return a
+
+
+def _frozen_map(data: Mapping[str, NDArray] | None) -> Mapping[str, NDArray]:
+    """A read-only mapping of read-only arrays (empty for ``None``)."""
+    return MappingProxyType({str(k): _readonly(np.asarray(v)) for k, v in (data or {}).items()})
+
+
+def _data(data: Mapping[str, ArrayLike] | None, size: int, what: str, rows: str
+          ) -> Mapping[str, NDArray]:
+    """Copies of the arrays of ``data``, each with ``size`` rows, in a read-only mapping."""
+    out = {}
+    for key, value in (data or {}).items():
+        a = np.array(value)
+        if not isinstance(key, str):
+            raise ValueError(f"{what}: keys must be strings, got {key!r}")
+        if a.ndim == 0 or a.shape[0] != size:
+            raise ValueError(f"{what}[{key!r}] must have one row per {rows[:-1]} "
+                             f"({size} {rows}), got shape {a.shape}")
+        if a.dtype.kind not in "biuf":
+            raise ValueError(f"{what}[{key!r}] must be numeric, got dtype {a.dtype}")
+        out[key] = a
+    return _frozen_map(out)
+
+
+def _names(names: Mapping[tuple[int, int], str] | None) -> Mapping[tuple[int, int], str]:
+    out = {}
+    for key, name in (names or {}).items():
+        try:
+            dim, tag = (int(x) for x in key)
+        except (TypeError, ValueError):
+            raise ValueError(f"physical_names: keys must be (dimension, tag) pairs, got "
+                             f"{key!r}") from None
+        if dim not in (0, 1, 2):
+            raise ValueError(f"physical_names: dimension must be 0, 1 or 2, got {dim}")
+        out[(dim, tag)] = str(name)
+    return MappingProxyType(out)
+
+
+def _transitions(rows: ArrayLike | None, triangles: NDArray, n_points: int
+                 ) -> NDArray[np.int64] | None:
+    """The history rows ``(M, 3)``: ``-1`` rows or vertex rows of existing points."""
+    if rows is None:
+        return None
+    a = np.array(rows, dtype=np.int64)
+    if a.shape != triangles.shape:
+        raise ValueError(f"transitions must have shape {triangles.shape}, got {a.shape}")
+    if a.size and (a.min() < -1 or a.max() >= n_points
+                   or ((a == -1).any(axis=1) & (a != -1).any(axis=1)).any()):
+        raise ValueError("transitions: each row is a vertex row or all -1")
     return a
 
 
@@ -37,6 +89,22 @@ class Mesh:
         Tagged boundary or interface edges; each must be an edge of some triangle.
     edge_tags : (K,) int64, optional
         One tag per row of ``edges``; given together with ``edges``.
+    point_data : mapping of str to (N, ...) array, optional
+        Per-point fields (a solution, a size field). Refinement interpolates them linearly
+        to the new points.
+    cell_data : mapping of str to (M, ...) array, optional
+        Per-triangle fields (a material id, an indicator). Children inherit their parent's
+        values.
+    physical_names : mapping of (int, int) to str, optional
+        Names of tags, keyed by ``(dimension, tag)`` as Gmsh's ``$PhysicalNames``: dimension
+        2 for ``cell_tags``, 1 for ``edge_tags``.
+    transitions : (M, 3) int, optional
+        Refinement history for local refinement: for each triangle that is a child of a
+        transition ("green") pattern, the counter-clockwise vertex row of the triangle the
+        pattern replaced; ``-1`` rows for every other triangle. Set by
+        :func:`qdrefine.refine` with ``marked``, read by the next such call, which coarsens
+        those patterns before refining them (``docs/adaptive.md``). ``None``: no triangle is
+        a transition child.
 
     Construction validates everything once with :func:`qdrefine.check.find` and raises
     ``ValueError`` naming the first problem and where (triangle, vertex or edge ids): shapes,
@@ -52,21 +120,38 @@ class Mesh:
     cell_tags: NDArray[np.int64] | None = None
     edges: NDArray[np.integer] | None = None
     edge_tags: NDArray[np.int64] | None = None
+    point_data: Mapping[str, NDArray] | None = None
+    cell_data: Mapping[str, NDArray] | None = None
+    physical_names: Mapping[tuple[int, int], str] | None = None
+    transitions: NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
         fields = _validated(self.points, self.triangles, self.cell_tags, self.edges,
                             self.edge_tags)
+        n, m = fields["points"].shape[0], fields["triangles"].shape[0]
+        fields["point_data"] = _data(self.point_data, n, "point_data", "points")
+        fields["cell_data"] = _data(self.cell_data, m, "cell_data", "triangles")
+        fields["physical_names"] = _names(self.physical_names)
+        fields["transitions"] = _transitions(self.transitions, fields["triangles"], n)
         for name, value in fields.items():
             object.__setattr__(self, name, _readonly(value))
 
     @classmethod
     def _trusted(cls, points: NDArray, triangles: NDArray, cell_tags: NDArray | None = None,
-                 edges: NDArray | None = None, edge_tags: NDArray | None = None) -> Mesh:
+                 edges: NDArray | None = None, edge_tags: NDArray | None = None,
+                 point_data: Mapping[str, NDArray] | None = None,
+                 cell_data: Mapping[str, NDArray] | None = None,
+                 physical_names: Mapping[tuple[int, int], str] | None = None,
+                 transitions: NDArray | None = None) -> Mesh:
         """A mesh from arrays already known to be valid (output of qdrefine's kernels)."""
         mesh = object.__new__(cls)
         for name, value in (("points", points), ("triangles", triangles),
                             ("cell_tags", cell_tags), ("edges", edges),
-                            ("edge_tags", edge_tags)):
+                            ("edge_tags", edge_tags),
+                            ("point_data", _frozen_map(point_data)),
+                            ("cell_data", _frozen_map(cell_data)),
+                            ("physical_names", MappingProxyType(dict(physical_names or {}))),
+                            ("transitions", transitions)):
             object.__setattr__(mesh, name, _readonly(value))
         return mesh
 
