@@ -1,11 +1,12 @@
-"""Make the Gmsh-generated test meshes of ``tests/data/gmsh/`` with the Gmsh SDK.
+"""Make the Gmsh-generated example meshes of ``src/qdrefine/data/gmsh/`` with the Gmsh SDK
+(:func:`qdrefine.examples.gmsh_mesh` reads them).
 
 These are the unstructured meshes users bring (Gmsh's default Frontal-Delaunay 2D mesher):
 near-equilateral triangles, graded meshes with a size field, a boundary layer of anisotropic
 triangles. The files are committed so that the tests do not depend on a Gmsh version; this
 script records how they were made. Usage (needs ``pip install gmsh``)::
 
-    python benchmarks/make_gmsh_meshes.py [tests/data/gmsh]
+    python benchmarks/make_gmsh_meshes.py [src/qdrefine/data/gmsh]
 """
 
 from __future__ import annotations
@@ -117,5 +118,5 @@ def main(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).parents[1] / "tests" / "data"
-              / "gmsh"))
+    main(Path(sys.argv[1]) if len(sys.argv) > 1
+         else Path(__file__).parents[1] / "src" / "qdrefine" / "data" / "gmsh")

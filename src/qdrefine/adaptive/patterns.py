@@ -19,6 +19,7 @@ from functools import cache
 from itertools import combinations, product
 
 import numpy as np
+from numba import njit, prange
 from numpy.typing import NDArray
 
 from ..stencil import CENTROID, FIXED_7T, FOUR, SEVEN, Stencil, with_centroid
@@ -156,11 +157,78 @@ def stencil_coordinates(corners: NDArray[np.float64], k: int) -> NDArray[np.floa
 
 def min_angles(tri: NDArray[np.float64]) -> NDArray[np.float64]:
     """Smallest angle (degrees) of triangles ``(..., 3, 2)``; 0 for degenerate ones."""
-    e = np.roll(tri, -1, axis=-2) - tri  # e_i = v_{i+1} - v_i
-    f = -np.roll(e, 1, axis=-2)  # v_{i-1} - v_i
-    cross = np.abs(e[..., 0] * f[..., 1] - e[..., 1] * f[..., 0])
-    dot = (e * f).sum(axis=-1)
-    return np.degrees(np.arctan2(cross, dot)).min(axis=-1)
+    flat = np.ascontiguousarray(tri, dtype=np.float64).reshape(-1, 3, 2)
+    out = np.empty(flat.shape[0])
+    _min_angles(flat, out)
+    return out.reshape(tri.shape[:-2])
+
+
+@njit(cache=True, inline="always")
+def _corner_min(ax, ay, bx, by, cx, cy):
+    """Smallest angle (degrees) of the triangle ``a, b, c``."""
+    best = 180.0
+    for i in range(3):
+        if i == 0:
+            px, py, qx, qy, rx, ry = ax, ay, bx, by, cx, cy
+        elif i == 1:
+            px, py, qx, qy, rx, ry = bx, by, cx, cy, ax, ay
+        else:
+            px, py, qx, qy, rx, ry = cx, cy, ax, ay, bx, by
+        ex, ey = qx - px, qy - py
+        fx, fy = rx - px, ry - py
+        a = np.degrees(np.arctan2(abs(ex * fy - ey * fx), ex * fx + ey * fy))
+        best = min(best, a)
+    return best
+
+
+@njit(cache=True)
+def _min_angles(tri, out):
+    for g in range(tri.shape[0]):
+        out[g] = _corner_min(tri[g, 0, 0], tri[g, 0, 1], tri[g, 1, 0], tri[g, 1, 1],
+                             tri[g, 2, 0], tri[g, 2, 1])
+
+
+@njit(cache=True, inline="always")
+def _tan_min(ax, ay, bx, by, cx, cy):
+    """``tan`` of the smallest angle of the triangle ``a, b, c`` (at the vertex opposite its
+    shortest edge, where the angle is at most 60 degrees, so ``tan`` is increasing); 0 for
+    a degenerate triangle."""
+    la = (bx - cx) ** 2 + (by - cy) ** 2  # opposite a
+    lb = (cx - ax) ** 2 + (cy - ay) ** 2
+    lc = (ax - bx) ** 2 + (ay - by) ** 2
+    if la <= lb and la <= lc:
+        px, py, qx, qy, rx, ry = ax, ay, bx, by, cx, cy
+    elif lb <= lc:
+        px, py, qx, qy, rx, ry = bx, by, cx, cy, ax, ay
+    else:
+        px, py, qx, qy, rx, ry = cx, cy, ax, ay, bx, by
+    ex, ey = qx - px, qy - py
+    fx, fy = rx - px, ry - py
+    dot = ex * fx + ey * fy
+    if dot <= 0.0:
+        return 0.0
+    return abs(ex * fy - ey * fx) / dot
+
+
+@njit(parallel=True, cache=True)
+def _choose(coords, tris, cand, choice, score):
+    n_u = tris.shape[0]
+    for g in prange(coords.shape[0]):
+        ang = np.empty(n_u + 1)
+        for u in range(n_u):
+            a, b, c = tris[u, 0], tris[u, 1], tris[u, 2]
+            ang[u] = _tan_min(coords[g, a, 0], coords[g, a, 1], coords[g, b, 0],
+                              coords[g, b, 1], coords[g, c, 0], coords[g, c, 1])
+        ang[n_u] = np.inf
+        best, at = -1.0, 0
+        for c in range(cand.shape[0]):
+            s = np.inf
+            for t in range(cand.shape[1]):
+                s = min(s, ang[cand[c, t]])
+            if s > best:  # the first candidate on ties
+                best, at = s, c
+        choice[g] = at
+        score[g] = np.degrees(np.arctan(best))
 
 
 def choose(coords: NDArray[np.float64], k: int, code: int
@@ -169,11 +237,12 @@ def choose(coords: NDArray[np.float64], k: int, code: int
     coordinates ``(G, S, 2)`` of :func:`stencil_coordinates`."""
     tris, cand, _ = tables(k, code)
     g = coords.shape[0]
-    ang = min_angles(coords[:, tris])  # (G, U)
-    ang = np.concatenate([ang, np.full((g, 1), np.inf)], axis=1)  # padding column
-    score = ang[:, cand].min(axis=2)  # (G, C)
-    choice = np.argmax(score, axis=1)  # first candidate on ties
-    return choice, score[np.arange(g), choice]
+    choice = np.empty(g, dtype=np.int64)
+    score = np.empty(g)
+    if g:
+        _choose(np.ascontiguousarray(coords, dtype=np.float64), tris.astype(np.int64), cand,
+                choice, score)
+    return choice, score
 
 
 def quality(coords: NDArray[np.float64], k: int, code: int) -> NDArray[np.float64]:

@@ -105,32 +105,32 @@ class Upgrades:
 
     def __init__(self, inp: StepInput, tree: Tree) -> None:
         self.inp, self.tree = inp, tree
-        self.known = np.zeros(0, dtype=bool)
-        self.by_mn = np.zeros(0, dtype=bool)
-        self.by_om = np.zeros(0, dtype=bool)
+        self.verdicts = np.full((0, 2), -1, dtype=np.int8)  # (nodes, [by MN, by OM])
 
     def __call__(self, nodes: NDArray[np.int64], code: NDArray[np.int64]) -> NDArray[np.bool_]:
         if self.inp.k != 2:
             return np.zeros(nodes.shape, dtype=bool)
         size = self.tree.rows.shape[0]
-        if self.known.size < size:  # the tree grew
-            grow = size - self.known.size
-            self.known = np.concatenate([self.known, np.zeros(grow, bool)])
-            self.by_mn = np.concatenate([self.by_mn, np.zeros(grow, bool)])
-            self.by_om = np.concatenate([self.by_om, np.zeros(grow, bool)])
-        todo = np.unique(nodes[~self.known[nodes]])
-        if todo.size:
-            self._judge(todo)
-        return self.by_mn[nodes] | (((code & OM) != 0) & self.by_om[nodes])
+        if self.verdicts.shape[0] < size:  # the tree grew
+            grow = np.full((size - self.verdicts.shape[0], 2), -1, dtype=np.int8)
+            self.verdicts = np.concatenate([self.verdicts, grow])
+        with_om = (code & OM) != 0
+        for col, need in ((0, np.ones(nodes.shape, dtype=bool)), (1, with_om)):
+            todo = np.unique(nodes[need & (self.verdicts[nodes, col] < 0)])
+            if todo.size:
+                self.verdicts[todo, col] = self._judge(todo, col)
+        return (self.verdicts[nodes, 0] == 1) | (with_om & (self.verdicts[nodes, 1] == 1))
 
-    def _judge(self, nodes: NDArray[np.int64]) -> None:
+    def _judge(self, nodes: NDArray[np.int64], col: int) -> NDArray[np.int8]:
         k, tree = self.inp.k, self.tree
         corners = canonical_corners(tree.points, tree.rows[nodes], tree.labels[nodes])
         coords = stencil_coordinates(corners, k)
-        self.by_mn[nodes] = quality(coords, k, MN | NO) >= UPGRADE * quality(coords, k, MN)
-        self.by_om[nodes] = (full_quality(corners, self.inp.sch)
-                             >= UPGRADE * quality(coords, k, MN | OM))
-        self.known[nodes] = True
+        if col == 0:
+            better = quality(coords, k, MN | NO) >= UPGRADE * quality(coords, k, MN)
+        else:
+            better = full_quality(corners, self.inp.sch) >= UPGRADE * quality(coords, k,
+                                                                              MN | OM)
+        return better.astype(np.int8)
 
 
 def full_quality(corners: NDArray[np.float64], sch: Scheme) -> NDArray[np.float64]:
