@@ -24,8 +24,8 @@ from numpy.typing import ArrayLike, NDArray
 from .adaptive import as_mask
 from .mesh import Mesh
 
-__all__ = ["mark_ids", "mark_mask", "mark_tag", "mark_region", "mark_box", "mark_dorfler",
-           "mark_maximum", "mark_file"]
+__all__ = ["mark_ids", "mark_mask", "mark_tag", "mark_region", "mark_box", "mark_point",
+           "mark_circle", "mark_random", "mark_dorfler", "mark_maximum", "mark_file"]
 
 
 def mark_ids(mesh: Mesh, ids: ArrayLike) -> NDArray[np.bool_]:
@@ -152,6 +152,34 @@ def mark_box(mesh: Mesh, box: ArrayLike) -> NDArray[np.bool_]:
         d = np.einsum("mkj,mj->mk", corners[None, :, :] - a[:, None, :], normal)
         hit &= ~(d > 0).all(axis=1)
     return hit
+
+
+def mark_point(mesh: Mesh, point: ArrayLike, radius: float = 0.0) -> NDArray[np.bool_]:
+    """Triangles with a vertex within ``radius`` of ``point`` (a corner singularity: with
+    ``radius = 0`` the triangles around the vertex at ``point``)."""
+    d = np.linalg.norm(mesh.points - np.asarray(point, dtype=np.float64), axis=1)
+    return (d[mesh.triangles] <= radius).any(axis=1)
+
+
+def mark_circle(mesh: Mesh, center: ArrayLike, radius: float, size: float = 0.0
+                ) -> NDArray[np.bool_]:
+    """Triangles crossing the circle (vertices on both sides of it, or on it) whose
+    longest edge is longer than ``size``: a front refined to a target size."""
+    p = mesh.points[mesh.triangles]
+    d = np.linalg.norm(p - np.asarray(center, dtype=np.float64), axis=2)
+    cross = (d.min(axis=1) <= radius) & (d.max(axis=1) >= radius)
+    longest = np.linalg.norm(p - np.roll(p, -1, axis=1), axis=2).max(axis=1)
+    return cross & (longest > size)
+
+
+def mark_random(mesh: Mesh, fraction: float, seed: int = 0) -> NDArray[np.bool_]:
+    """About ``fraction`` of the triangles, picked by a hash of their centroid and
+    ``seed``: deterministic for a given mesh, independent of the triangle order, and as
+    likely to hit a transition child as any other triangle (the adversarial case for
+    local refinement)."""
+    c = centroids(mesh)
+    u = np.sin(c @ np.array([12.9898, 78.233]) + 3.7 * seed) * 43758.5453
+    return u - np.floor(u) < fraction
 
 
 def mark_dorfler(indicator: ArrayLike, theta: float) -> NDArray[np.bool_]:
