@@ -232,7 +232,7 @@ def _mp_search(mp, ratio, reading):
         (mp.mpf(6) / 13, mp.mpf(4) / 13)))
     g = (mp.sqrt(5) - 1) / 2
     for fx, fy, t0, t1 in curves:
-        def f(t):
+        def f(t, fx=fx, fy=fy):
             return ratio(reading, fx(t), max(fy(t), tiny))
         n = 40
         ts = [t0 + (t1 - t0) * i / n for i in range(n + 1)]

@@ -41,17 +41,15 @@ whose summed ``|K15 - G7|`` is the reported error estimate.
 from .arcs import DOMAIN_ARC, Arc, Predicate, arc_area, decision_arcs
 from .extrema import READINGS, Extremum, in_closure, ratio, worst_ratio, worst_ratios
 from .mapping import (
-    _SCHEMES_7T,
+    _SCHEMES_7T as _SCHEMES_7T,
+)
+from .mapping import (
     FANS,
     HALF_ANGLE_AREA,
     HALF_AREA,
     MEASURES,
     OVER,
     REGIONS,
-    _fan_measure,
-    _fans_float,
-    _rows_float,
-    _tri_angles,
     fan_angles,
     fixed_angles,
     inside_half,
@@ -61,8 +59,21 @@ from .mapping import (
     stencil_points,
     to_diagram,
 )
+from .mapping import (
+    _fan_measure as _fan_measure,
+)
+from .mapping import (
+    _fans_float as _fans_float,
+)
+from .mapping import (
+    _rows_float as _rows_float,
+)
+from .mapping import (
+    _tri_angles as _tri_angles,
+)
 from .quadrature import QuadResult, gauss_kronrod, quadrature_area
-from .regions import ANGLE_REGIONS, ARC_REGIONS, _pred, region_area
+from .regions import ANGLE_REGIONS, ARC_REGIONS, region_area
+from .regions import _pred as _pred
 from .result import DiagramResult, compute
 
 __all__ = [

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .arcs import Arc, Predicate, _critical_x, decision_arcs
+from .arcs import Predicate, _critical_x, decision_arcs
 from .mapping import _fans_float, fan_angles, inside_half
 
 # ----------------------------------------------------------------------------------------
