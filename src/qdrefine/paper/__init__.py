@@ -24,9 +24,11 @@ import numpy as np
 from .. import diagram as dg
 from .claims import PAPER_CLAIMS, PAPER_TABLE1
 from .cost import decision_costs
+from .figures import save_all
 from .iterated import counterexample_search, diagram_grid, iterate
 from .lemmas import has, lemma_checks
 from .qhull import find_qhull_failure, nine_points
+from .report import build_report
 from .sample import region_sample
 from .verdicts import measure
 
@@ -72,9 +74,6 @@ def compute_context(step: float = 1 / 1200, tol: float = 1e-10, iterated_grid: i
 
 def write_all(outdir: str | Path, figures: bool = True) -> Path:
     """Recompute everything and write the figures and ``report.md`` into ``outdir``."""
-    from .figures import save_all
-    from .report import build_report
-
     start = time.time()
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)

@@ -359,24 +359,38 @@ def fig11_table1_c2(ctx):
                        "C2 = mean QD > mean D, minus C1", f["C2"])
 
 
+def _grid_image(points, values):
+    """Values on the cell centres of :func:`qdrefine.paper.iterated.diagram_grid` as an
+    image ``(ny, nx)`` (NaN outside ``H``) and its extent."""
+    xs = np.unique(points[:, 0])
+    h = xs[1] - xs[0] if xs.size > 1 else 0.5
+    ix = np.round((points[:, 0] - h / 2) / h).astype(int)
+    iy = np.round((points[:, 1] - h / 2) / h).astype(int)
+    img = np.full((iy.max() + 1, ix.max() + 1), np.nan)
+    img[iy, ix] = values
+    return img, (0.0, (ix.max() + 1) * h, 0.0, (iy.max() + 1) * h)
+
+
 def _iterated_fig(ctx, scheme):
     plt = _plt()
     it = ctx["iterated"][scheme]
     p = it.points
-    fig, axs = plt.subplots(1, 2, figsize=(10, 7.5))
-    sc = axs[0].scatter(p[:, 0], p[:, 1], c=it.worst[-1], s=9, marker="s", cmap="viridis",
-                        linewidths=0)
-    fig.colorbar(sc, ax=axs[0], shrink=0.7,
+    fig, axs = plt.subplots(1, 2, figsize=(10, 6), layout="constrained")
+    img, ext = _grid_image(p, it.worst[-1])
+    im = axs[0].imshow(img, origin="lower", extent=ext, cmap="viridis", aspect="equal",
+                       interpolation="nearest")
+    fig.colorbar(im, ax=axs[0], shrink=0.8,
                  label=f"worst descendant min angle / initial, levels 1-{it.levels}")
-    sc = axs[1].scatter(p[:, 0], p[:, 1], c=it.classes[-1], s=9, marker="s", cmap="cividis",
-                        linewidths=0, norm=_lognorm(it.classes[-1]))
-    fig.colorbar(sc, ax=axs[1], shrink=0.7, label=f"similarity classes at level {it.levels}")
+    img, ext = _grid_image(p, it.classes[-1])
+    im = axs[1].imshow(img, origin="lower", extent=ext, cmap="cividis", aspect="equal",
+                       interpolation="nearest", norm=_lognorm(it.classes[-1]))
+    fig.colorbar(im, ax=axs[1], shrink=0.8, label=f"similarity classes at level {it.levels}")
     for a in axs:
         _half_outline(a)
         _labels(a)
     axs[0].set_title(f"{scheme.upper()}: worst ratio (min {it.worst[-1].min():.4f})")
-    axs[1].set_title(f"{scheme.upper()}: shapes at level {it.levels} "
-                     f"(closed on {100 * it.closed.mean():.0f}% of triangles)")
+    axs[1].set_title(f"{scheme.upper()}: shapes at level {it.levels}\n"
+                     f"(closed on {100 * it.closed.mean():.0f}% of the triangles)")
     fig.suptitle(f"Iterated {scheme.upper()} over the diagram ({len(p)} triangles)")
     return fig
 

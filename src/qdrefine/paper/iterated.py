@@ -67,6 +67,18 @@ class Iterated:
         Classes at level ``k`` never seen at a lower level (the initial shape counts as seen).
     quality : (L, K) float
         Area-weighted mean descendant min angle over the initial min angle.
+    area : (L, K) float
+        Total area share of the level's descendants (1 up to rounding: a check).
+    shapes : (C, 2) float
+        Diagram points of the classes of the last level; ``owner (C,)`` their triangle.
+
+    Notes
+    -----
+    A class stands for its shape in the canonical placement ``(0,0), (1,0), (x, y)``. A
+    shape with a tie (``x = 1/2``: two equal longest-edge endpoints; an isosceles apex) is
+    labelled in a mesh by its coordinates, so a mesh may partition a congruent copy as the
+    mirror image, which for 7T-QD can give other children: a mesh may hold a few more shapes
+    than counted here (tests compare with brute-force meshes).
     """
 
     scheme: str
@@ -75,6 +87,9 @@ class Iterated:
     classes: NDArray[np.int64]
     new: NDArray[np.int64]
     quality: NDArray[np.float64]
+    area: NDArray[np.float64]
+    shapes: NDArray[np.float64]
+    owner: NDArray[np.int64]
 
     @property
     def levels(self) -> int:
@@ -128,6 +143,7 @@ def iterate(scheme: str, points: ArrayLike, levels: int = 6, digits: int = 9) ->
     classes = np.zeros((levels, n), dtype=np.int64)
     new = np.zeros((levels, n), dtype=np.int64)
     quality = np.zeros((levels, n))
+    area = np.zeros((levels, n))
     running = np.full(n, np.inf)
     for level in range(levels):
         cxy, share = _children(x, y, name)
@@ -147,7 +163,8 @@ def iterate(scheme: str, points: ArrayLike, levels: int = 6, digits: int = 9) ->
         seen = np.concatenate([seen, uniq[fresh]])
         new[level] = np.bincount(sid[fresh], minlength=n)
         quality[level] = np.bincount(sid, weights=weight * ratio, minlength=n)
-    return Iterated(name, p, worst, classes, new, quality)
+        area[level] = np.bincount(sid, weights=weight, minlength=n)
+    return Iterated(name, p, worst, classes, new, quality, area, np.column_stack([x, y]), sid)
 
 
 def worst_ratio(scheme: str = "7t-qd", levels: int = 6, samples: int | ArrayLike = 40

@@ -111,7 +111,8 @@ def table1(ctx) -> list[str]:
         text = (f"The paper's 'Region III {p3}' matches all of III ({pct(f['III'], 3)}), not "
                 f"III minus the shaded region ({pct(f['III-shaded'], 3)})")
     else:
-        text = (f"The paper's 'Region III {p3}' matches {'both' if all(cand.values()) else 'neither'}"
+        which = "both" if all(cand.values()) else "neither"
+        text = (f"The paper's 'Region III {p3}' matches {which}"
                 f" of III ({pct(f['III'], 3)}) and III minus the shaded region "
                 f"({pct(f['III-shaded'], 3)}); III minus the shaded region is used")
     out.append(f"{text}; the paper's Table 1 percentages add up to {total:g}%.\n")

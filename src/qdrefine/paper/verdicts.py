@@ -62,6 +62,10 @@ def agree(ours: float, quoted: str) -> str:
     return "wrong"
 
 
+_HOW = {"confirmed": "rounds", "confirmed (truncated, not rounded)": "truncates",
+        "wrong": "does not round or truncate"}
+
+
 def pct(v: float, digits: int = 4) -> str:
     return f"{100 * v:.{digits}f}%"
 
@@ -195,11 +199,13 @@ def _cost_rows(m: Measurements, claims: dict) -> list[Claim]:
     else:
         verdict = "not measurable" if ratio > 1 / (1 + noise) else "wrong"
     note = (f"7T-D's decision takes {ratio:.2f} x 7T-QD's (fastest of the repeats; "
-            f"second fastest within {100 * noise:.0f}%), because on the nine-point stencil every incircle test "
+            f"second fastest within {100 * noise:.0f}%), because on the nine-point stencil "
+            "every incircle test "
             "is itself a sign of a form a uu + b ww + c uw, exactly like a length comparison")
     if m.qhull_ns is not None:
         note += (f"; a general floating-point Delaunay of the nine points (SciPy/Qhull) costs "
-                 f"{m.qhull_ns / 1000:.1f} us per triangle, {m.qhull_ns / qd.ns_per_triangle:.0f} x "
+                 f"{m.qhull_ns / 1000:.1f} us per triangle, "
+                 f"{m.qhull_ns / qd.ns_per_triangle:.0f} x "
                  "7T-QD's decision")
     rows = [Claim("cost", f"\"{claims['cheaper']}\"", f"decision per triangle, one thread: "
                   f"{times}", verdict, note + ".")]
@@ -222,12 +228,14 @@ def claim_rows(m: Measurements, claims: dict = PAPER_CLAIMS) -> list[Claim]:
     rows.append(Claim("thresholds", f"7T-QD coincides with 7T-D in "
                       f"\"{claims['coincide_with_delaunay']}\"", pct(1 - f["shaded"]),
                       "confirmed" if 100 * (1 - f["shaded"]) > c97 else "wrong",
-                      f"1 - shaded fraction is {'above' if 100 * (1 - f['shaded']) > c97 else 'not above'} "
+                      "1 - shaded fraction is "
+                      f"{'above' if 100 * (1 - f['shaded']) > c97 else 'not above'} "
                       f"{c97:g}%"))
     c3 = float(claims["differ_from_delaunay_percent"])
     rows.append(Claim("thresholds", f"they differ on \"{claims['differ_from_delaunay']}\"",
                       pct(f["shaded"]), "confirmed" if 100 * f["shaded"] < c3 else "wrong",
-                      f"the shaded fraction is {'below' if 100 * f['shaded'] < c3 else 'not below'} "
+                      "the shaded fraction is "
+                      f"{'below' if 100 * f['shaded'] < c3 else 'not below'} "
                       f"{c3:g}%"))
     for key, ours, label in (("shaded_area", res.areas["shaded"], "shaded area"),
                              ("shaded_fraction", f["shaded"], "shaded ratio"),
@@ -235,7 +243,7 @@ def claim_rows(m: Measurements, claims: dict = PAPER_CLAIMS) -> list[Claim]:
                              ("C1_fraction", f["C1"], "C1 ratio")):
         v = agree(ours, claims[key])
         rows.append(Claim("areas", f"{label} \"{claims[key]}\"", f"{ours:.10f}", v,
-                          f"ours {'rounds' if v == 'confirmed' else 'truncates' if v != 'wrong' else 'does not round or truncate'} "
+                          f"ours {_HOW[v]} "
                           f"to the paper's {claims[key]}"))
     le = res.le_min_above_qd / res.diagram_area
     c04 = float(claims["le_min_above_qd_percent"])
@@ -329,8 +337,10 @@ def _similar_rows(m: Measurements, claims: dict, tau: float) -> list[Claim]:
                       f"(max {g['right_max']:.2f})",
                       "confirmed" if ok else ("partly" if g["left_mean"] > g["right_mean"]
                                               else "wrong"),
-                      f"the left side's gaps are {'larger' if g['left_mean'] > g['right_mean'] else 'not larger'}; "
-                      f"the right side's mean gap is {'below' if g['right_mean'] < tau else 'above'} "
+                      "the left side's gaps are "
+                      f"{'larger' if g['left_mean'] > g['right_mean'] else 'not larger'}; "
+                      "the right side's mean gap is "
+                      f"{'below' if g['right_mean'] < tau else 'above'} "
                       f"the tolerance {tau:.2f} deg (see the difference map)"))
     fig11 = res.extra_areas["qd_mean_above_d"] / res.diagram_area
     rows.append(Claim("similar", f"\"{claims['fig11']}\"",
