@@ -169,6 +169,12 @@ def test_diagram_json(capsys):
     assert fr["C1"] + fr["C2"] + fr["C3"] == pytest.approx(fr["shaded"], abs=1e-8)
     assert obj["error_bound"] <= 1e-6
     assert 0 < obj["worst_qd_over_d_min_angle"] < 1
+    assert 0 < obj["worst_qd_over_d_min_angle_bound"] < 1e-9
+    by = obj["worst_qd_over_d_by_reading"]
+    assert set(by) == set(dg.READINGS)
+    for e in by.values():
+        assert e["lower"] <= e["value"] and e["bound"] >= e["value"] - e["lower"]
+    assert by["pentagon"]["value"] == obj["worst_qd_over_d_min_angle"]
     assert "paper_claims" in obj
 
 
