@@ -219,6 +219,12 @@ def _mp_ratio_factory(mp):
         q, d = readings[reading]
         return min(min_angle(p, t) for t in q) / min(min_angle(p, t) for t in d)
 
+    def neg_gap(reading, x, y):  # QD - D in degrees: its minimum is minus the largest gap
+        p = points(x, y)
+        q, d = readings[reading]
+        return mp.degrees(min(min_angle(p, t) for t in q) - min(min_angle(p, t) for t in d))
+
+    ratio.neg_gap = neg_gap
     return ratio
 
 
@@ -277,6 +283,10 @@ def _check_worst_ratios(mp, ratio):
         # the certified interval contains the independent value
         assert ours.lower - 1e-12 <= float(ref) <= ours.value + 1e-12, reading
         assert ours.bound < 1e-9
+        big = dg.largest_gap(reading)
+        ref_gap = -_mp_search(mp, ratio.neg_gap, reading)
+        assert abs(big.value - float(ref_gap)) < 1e-9, reading
+        assert big.lower - 1e-12 <= float(ref_gap) <= big.upper + 1e-12
         # and the value is attained where it says
         x, y = ours.point
         assert float(ratio(reading, mp.mpf(x), mp.mpf(max(y, 1e-25)))) == pytest.approx(

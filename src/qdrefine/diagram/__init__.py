@@ -39,7 +39,16 @@ whose summed ``|K15 - G7|`` is the reported error estimate.
 
 
 from .arcs import DOMAIN_ARC, Arc, Predicate, arc_area, decision_arcs
-from .extrema import READINGS, Extremum, in_closure, ratio, worst_ratio, worst_ratios
+from .extrema import (
+    READINGS,
+    Extremum,
+    gap,
+    in_closure,
+    largest_gap,
+    ratio,
+    worst_ratio,
+    worst_ratios,
+)
 from .mapping import (
     _SCHEMES_7T as _SCHEMES_7T,
 )
@@ -108,6 +117,8 @@ __all__ = [
     "in_closure",
     "worst_ratio",
     "worst_ratios",
+    "gap",
+    "largest_gap",
     "DiagramResult",
     "compute",
 ]

@@ -44,7 +44,8 @@ from numpy.typing import ArrayLike, NDArray
 from ..stencil import FIXED_7T, SEVEN, fan
 
 __all__ = ["READINGS", "BOUNDARY", "CORNERS", "Extremum", "reading_triangles",
-           "normalized_angles", "ratio", "in_closure", "worst_ratio", "worst_ratios"]
+           "normalized_angles", "angles", "ratio", "gap", "in_closure", "worst_ratio",
+           "worst_ratios", "largest_gap"]
 
 _QD_FAN = fan("O")
 _D_FAN = fan("D")
@@ -222,34 +223,49 @@ def _box_ratio_lower(coef_q, coef_d, x0, x1, y0, y1):
 
 @dataclass(frozen=True)
 class Extremum:
-    """A certified minimum: the true minimum lies in ``[lower, value]``.
+    """A certified extremum over the closed shaded region: the true value lies in
+    ``[lower, upper]``.
 
     Attributes
     ----------
     reading : str
+    quantity : str
+        ``"ratio"`` (7T-QD / 7T-D min angle) or ``"gap"`` (7T-D - 7T-QD min angle, degrees).
+    sense : {"min", "max"}
     value : float
-        Smallest ratio found at a point of the closure (an upper bound of the minimum).
+        The extremum found at a point of the closure (attained).
+    certified : float
+        The other end from interval branch and bound (below ``value`` for a minimum, above
+        for a maximum).
     point : (float, float)
         Where ``value`` is attained.
     where : str
         The boundary curve or corner of ``point`` ("interior" if none).
-    lower : float
-        Certified lower bound from interval branch and bound.
     boxes : int
         Boxes examined by the branch and bound.
     """
 
     reading: str
+    quantity: str
+    sense: str
     value: float
+    certified: float
     point: tuple[float, float]
     where: str
-    lower: float
     boxes: int
 
     @property
+    def lower(self) -> float:
+        return self.certified if self.sense == "min" else self.value
+
+    @property
+    def upper(self) -> float:
+        return self.value if self.sense == "min" else self.certified
+
+    @property
     def bound(self) -> float:
-        """``value - lower`` plus float rounding of ``value`` (``1e-14``)."""
-        return self.value - self.lower + 1e-14
+        """``upper - lower`` plus float rounding of ``value`` (``1e-14``)."""
+        return self.upper - self.lower + 1e-14
 
 
 def _golden(f, a, b, tol=1e-15, iterations=200):
@@ -270,18 +286,19 @@ def _golden(f, a, b, tol=1e-15, iterations=200):
     return (c, fc) if fc < fd else (d, fd)
 
 
-def _boundary_minimum(reading: str, samples: int, polish: int = 4
+def _boundary_minimum(func, samples: int, polish: int = 4
                       ) -> tuple[float, tuple[float, float], str]:
-    """Smallest ratio on the corners and curves of the closure: the ``polish`` smallest
-    sampled local minima of every curve, refined by golden-section search on their bracket."""
+    """Smallest value of ``func(x, y)`` on the corners and curves of the closure: the
+    ``polish`` smallest sampled local minima of every curve, refined by golden-section search
+    on their bracket."""
     best = (math.inf, (math.nan, math.nan), "")
     for name, (x, y) in CORNERS.items():
-        v = float(ratio([x], [y], reading)[0])
+        v = float(func(np.array([x]), np.array([y]))[0])
         if v < best[0]:
             best = (v, (x, y), f"corner {name}")
     for curve in BOUNDARY:
         t = np.linspace(curve.t0, curve.t1, samples)
-        v = ratio(*curve.point(t), reading)
+        v = func(*curve.point(t))
         # every sampled local minimum (including the ends), polished on its bracket
         left = np.concatenate([[np.inf], v[:-1]])
         right = np.concatenate([v[1:], [np.inf]])
@@ -290,7 +307,7 @@ def _boundary_minimum(reading: str, samples: int, polish: int = 4
             lo, hi = t[max(i - 1, 0)], t[min(i + 1, samples - 1)]
 
             def f(s, curve=curve):
-                return float(ratio(*curve.point(np.array([s])), reading)[0])
+                return float(func(*curve.point(np.array([s])))[0])
 
             s, fs = _golden(f, lo, hi)
             if fs < best[0]:
@@ -300,6 +317,51 @@ def _boundary_minimum(reading: str, samples: int, polish: int = 4
         if math.hypot(best[1][0] - x, best[1][1] - y) < 1e-7:
             best = (best[0], best[1], f"corner {name}")
     return best
+
+
+def _certified_minimum(func, box_lower, delta: float, samples: int, max_rounds: int,
+                       max_boxes: int = 200_000
+                       ) -> tuple[float, tuple[float, float], str, float, int]:
+    """Minimum of ``func`` over the closure: ``(value, point, where, lower, boxes)``."""
+    value, point, where = _boundary_minimum(func, samples)
+    n = 32
+    ex = np.linspace(0.4, 0.5, n + 1)
+    ey = np.linspace(0.0, 4 / 13 + 1e-9, n + 1)
+    X0, Y0 = (a.ravel() for a in np.meshgrid(ex[:-1], ey[:-1]))
+    X1, Y1 = (a.ravel() for a in np.meshgrid(ex[1:], ey[1:]))
+    lower = math.inf
+    examined = 0
+    for _ in range(max_rounds):
+        keep = _box_in_closure(X0, X1, Y0, Y1)
+        X0, X1, Y0, Y1 = X0[keep], X1[keep], Y0[keep], Y1[keep]
+        if X0.size == 0:
+            break
+        examined += X0.size
+        xc, yc = 0.5 * (X0 + X1), 0.5 * (Y0 + Y1)
+        feasible = in_closure(xc, yc)
+        if feasible.any():
+            rc = func(xc[feasible], yc[feasible])
+            j = int(np.argmin(rc))
+            if rc[j] < value:
+                value, point, where = float(rc[j]), (float(xc[feasible][j]),
+                                                     float(yc[feasible][j])), "interior"
+        lb = box_lower(X0, X1, Y0, Y1)
+        done = lb >= value - delta
+        if done.any():
+            lower = min(lower, float(lb[done].min()))
+        X0, X1, Y0, Y1 = X0[~done], X1[~done], Y0[~done], Y1[~done]
+        if X0.size == 0:
+            break
+        if X0.size > max_boxes or (X1 - X0).max() < 1e-13:
+            # float boxes cannot shrink further: the rest bounds the minimum as it is
+            lower = min(lower, float(lb[~done].min()))
+            break
+        xm, ym = 0.5 * (X0 + X1), 0.5 * (Y0 + Y1)
+        X0, X1, Y0, Y1 = (np.concatenate(v) for v in (
+            (X0, xm, X0, xm), (xm, X1, xm, X1), (Y0, Y0, ym, ym), (ym, ym, Y1, Y1)))
+    else:
+        lower = min(lower, float(box_lower(X0, X1, Y0, Y1).min()))
+    return value, point, where, min(lower, value), examined
 
 
 def worst_ratio(reading: str = "pentagon", delta: float = 1e-10, samples: int = 2001,
@@ -323,41 +385,71 @@ def worst_ratio(reading: str = "pentagon", delta: float = 1e-10, samples: int = 
     """
     q, d = reading_triangles(reading)
     cq, cd = _angle_coefficients(q), _angle_coefficients(d)
-    value, point, where = _boundary_minimum(reading, samples)
-    n = 32
-    ex = np.linspace(0.4, 0.5, n + 1)
-    ey = np.linspace(0.0, 4 / 13 + 1e-9, n + 1)
-    X0, Y0 = (a.ravel() for a in np.meshgrid(ex[:-1], ey[:-1]))
-    X1, Y1 = (a.ravel() for a in np.meshgrid(ex[1:], ey[1:]))
-    lower = math.inf
-    examined = 0
-    for _ in range(max_rounds):
-        keep = _box_in_closure(X0, X1, Y0, Y1)
-        X0, X1, Y0, Y1 = X0[keep], X1[keep], Y0[keep], Y1[keep]
-        if X0.size == 0:
-            break
-        examined += X0.size
-        xc, yc = 0.5 * (X0 + X1), 0.5 * (Y0 + Y1)
-        feasible = in_closure(xc, yc)
-        if feasible.any():
-            rc = ratio(xc[feasible], yc[feasible], reading)
-            j = int(np.argmin(rc))
-            if rc[j] < value:
-                value, point, where = float(rc[j]), (float(xc[feasible][j]),
-                                                     float(yc[feasible][j])), "interior"
-        lb = _box_ratio_lower(cq, cd, X0, X1, Y0, Y1)
-        done = lb >= value - delta
-        if done.any():
-            lower = min(lower, float(lb[done].min()))
-        X0, X1, Y0, Y1 = X0[~done], X1[~done], Y0[~done], Y1[~done]
-        if X0.size == 0:
-            break
-        xm, ym = 0.5 * (X0 + X1), 0.5 * (Y0 + Y1)
-        X0, X1, Y0, Y1 = (np.concatenate(v) for v in (
-            (X0, xm, X0, xm), (xm, X1, xm, X1), (Y0, Y0, ym, ym), (ym, ym, Y1, Y1)))
-    else:
-        lower = min(lower, float(_box_ratio_lower(cq, cd, X0, X1, Y0, Y1).min()))
-    return Extremum(reading, value, point, where, min(lower, value), examined)
+    value, point, where, lower, boxes = _certified_minimum(
+        lambda x, y: ratio(x, y, reading),
+        lambda x0, x1, y0, y1: _box_ratio_lower(cq, cd, x0, x1, y0, y1),
+        delta, samples, max_rounds)
+    return Extremum(reading, "ratio", "min", value, lower, point, where, boxes)
+
+
+def angles(x: ArrayLike, y: ArrayLike, names: tuple[str, ...]) -> NDArray[np.float64]:
+    """Every angle (radians) of the named stencil triangles at diagram points, ``(K, 3 T)``."""
+    x = np.atleast_1d(np.asarray(x, dtype=np.float64))[:, None]
+    y = np.atleast_1d(np.asarray(y, dtype=np.float64))[:, None]
+    k, a, b, c = _angle_coefficients(names).T
+    return np.arctan2(np.abs(k) * y, a + b * x + c * (x * x + y * y))
+
+
+def gap(x: ArrayLike, y: ArrayLike, reading: str = "pentagon") -> NDArray[np.float64]:
+    """7T-D minus 7T-QD minimum angle of a reading, degrees, ``(K,)``."""
+    q, d = reading_triangles(reading)
+    return np.degrees(angles(x, y, d).min(axis=1) - angles(x, y, q).min(axis=1))
+
+
+def _box_true_angles(coef, x0, x1, y0, y1):
+    """Lower and upper bounds of every angle (radians) over boxes: the polar angle of
+    ``(d, c)`` on the rectangle of their ranges is extreme at a corner (``[0, pi]`` when the
+    rectangle holds the origin)."""
+    k, a, b, c = (v[None, :] for v in coef.T)
+    ak = np.abs(k)
+    X0, X1, Y0, Y1 = (v[:, None] for v in (x0, x1, y0, y1))
+    qa = a + b * X0 + c * X0 * X0
+    qb = a + b * X1 + c * X1 * X1
+    qlo, qhi = np.minimum(qa, qb), np.maximum(qa, qb)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xv = np.where(c != 0, -b / (2 * np.where(c != 0, c, 1.0)), np.nan)
+    inside = (X0 < xv) & (xv < X1)
+    qv = a + b * xv + c * xv * xv
+    qlo = np.where(inside, np.minimum(qlo, qv), qlo)
+    qhi = np.where(inside, np.maximum(qhi, qv), qhi)
+    pad = 1e-13 * (np.abs(a) + np.abs(b) + np.abs(c) + 1)
+    dlo = qlo + np.minimum(c * Y0 * Y0, c * Y1 * Y1) - pad
+    dhi = qhi + np.maximum(c * Y0 * Y0, c * Y1 * Y1) + pad
+    clo, chi = ak * Y0, ak * Y1
+    corners = np.stack([np.arctan2(clo, dlo), np.arctan2(clo, dhi), np.arctan2(chi, dlo),
+                        np.arctan2(chi, dhi)])
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    origin = (clo <= 0) & (dlo <= 0) & (dhi >= 0)
+    lo = np.where(origin, 0.0, lo)
+    hi = np.where(origin, np.pi, hi)
+    return lo - 1e-15, hi + 1e-15
+
+
+def largest_gap(reading: str = "pentagon", delta: float = 1e-10, samples: int = 2001,
+                max_rounds: int = 60) -> Extremum:
+    """Certified maximum of the 7T-D minus 7T-QD minimum angle (degrees) over the closed
+    shaded region (same method as :func:`worst_ratio`, on ``QD - D``)."""
+    q, d = reading_triangles(reading)
+    cq, cd = _angle_coefficients(q), _angle_coefficients(d)
+
+    def box_lower(x0, x1, y0, y1):
+        lq = _box_true_angles(cq, x0, x1, y0, y1)[0].min(axis=1)
+        ud = _box_true_angles(cd, x0, x1, y0, y1)[1].min(axis=1)
+        return np.degrees(lq - ud)
+
+    value, point, where, lower, boxes = _certified_minimum(
+        lambda x, y: -gap(x, y, reading), box_lower, delta, samples, max_rounds)
+    return Extremum(reading, "gap", "max", -value, -lower, point, where, boxes)
 
 
 def worst_ratios(delta: float = 1e-10) -> dict[str, Extremum]:

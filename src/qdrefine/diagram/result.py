@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .extrema import READINGS, Extremum, worst_ratios
+from .extrema import READINGS, Extremum, largest_gap, worst_ratios
 from .mapping import HALF_ANGLE_AREA, HALF_AREA, REGIONS
 from .regions import ARC_REGIONS, region_area
 
@@ -23,6 +23,7 @@ class DiagramResult:
     le_min_above_qd: float
     le_min_above_qd_error: float
     worst: dict[str, Extremum]
+    gaps: dict[str, Extremum] = field(default_factory=dict)
     angle_measure_fractions: dict[str, float] = field(default_factory=dict)
     angle_measure_errors: dict[str, float] = field(default_factory=dict)
     extra_areas: dict[str, float] = field(default_factory=dict)
@@ -61,6 +62,10 @@ class DiagramResult:
                 r: {"value": e.value, "lower": e.lower, "bound": e.bound,
                     "point": list(e.point), "where": e.where, "reading": READINGS[r][0]}
                 for r, e in self.worst.items()},
+            "largest_d_minus_qd_min_angle_deg": {
+                r: {"value": e.value, "upper": e.upper, "bound": e.bound,
+                    "point": list(e.point), "where": e.where}
+                for r, e in self.gaps.items()},
             "error_bound": self.error_bound,
             "errors": {k: self.errors[k] / self.diagram_area for k in keys},
             "extra": {
@@ -104,6 +109,7 @@ def compute(tol: float = 1e-10, n_samples: int = 64, angle_measure: bool = True
                          else f"root finding + adaptive quadrature ({r.intervals} intervals)")
     le = region_area("le_min_above_qd", tol=tol, n_samples=n_samples)
     worst = worst_ratios()
+    gaps = {r: largest_gap(r) for r in READINGS}
     am: dict[str, float] = {}
     ae: dict[str, float] = {}
     if angle_measure:
@@ -113,5 +119,5 @@ def compute(tol: float = 1e-10, n_samples: int = 64, angle_measure: bool = True
             am[name] = r.value / HALF_ANGLE_AREA
             ae[name] = r.error / HALF_ANGLE_AREA
     return DiagramResult(HALF_AREA, areas, errors, methods, le.value, le.error, worst,
-                         angle_measure_fractions=am, angle_measure_errors=ae, tol=tol,
+                         gaps=gaps, angle_measure_fractions=am, angle_measure_errors=ae, tol=tol,
                          n_samples=n_samples)

@@ -145,6 +145,18 @@ def extrema(ctx) -> list[str]:
                    f"{e.lower:.12f} | {e.bound:.1e} | {e.where} | "
                    f"({e.point[0]:.9f}, {e.point[1]:.9f}) |")
     out.append("")
+    if res.gaps:
+        out += ["The largest difference 7T-D - 7T-QD of the minimum angle (degrees), by the same "
+                "method (*value* attained, *upper* certified):\n",
+                "| reading | value (deg) | upper | bound | where | point |",
+                "|---|---|---|---|---|---|"]
+        for r, e in res.gaps.items():
+            out.append(f"| {r} | {e.value:.10f} | {e.upper:.10f} | {e.bound:.1e} | {e.where} | "
+                       f"({e.point[0]:.9f}, {e.point[1]:.9f}) |")
+        same = [r for r in res.gaps if np.hypot(*np.subtract(res.gaps[r].point,
+                                                              res.worst[r].point)) < 1e-6]
+        out.append("\nThe largest difference and the worst ratio are at the same point for "
+                   + (", ".join(same) if same else "no reading") + ".\n")
     return out
 
 
