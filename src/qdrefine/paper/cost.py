@@ -53,7 +53,7 @@ def _decide_all(v, forms, factors, lut):
     return acc
 
 
-def decision_costs(n: int = 200_000, repeats: int = 7, seed: int = 0,
+def decision_costs(n: int = 100_000, repeats: int = 11, seed: int = 0,
                    schemes: tuple[str, ...] = ("7t-le", "7t-qd", "7t-d")) -> list[DecisionCost]:
     """Time :func:`qdrefine.kernels.decide` on ``n`` random triangles per scheme.
 

@@ -297,6 +297,16 @@ def claim_rows(m: Measurements, claims: dict = PAPER_CLAIMS) -> list[Claim]:
     return rows
 
 
+def _fig11_sentence(black: float, c1: float, c2: float) -> str:
+    """Which of Table 1's regions the black region of Fig. 11 (mean QD > mean D) covers."""
+    if abs(black - c2) < 1e-9:
+        return "the black region is Table 1's C2"
+    rest = black - c2
+    part = "all of C1" if abs(rest - c1) < 1e-8 else f"{pct(rest, 3)} of H from C1 ({pct(c1, 3)})"
+    return (f"the black region is C2 plus {part}: the caption's 'Region C2' is not Table 1's "
+            "C2 (which excludes C1)")
+
+
 def _similar_rows(m: Measurements, claims: dict, tau: float) -> list[Claim]:
     res, f, s = m.res, m.res.fractions, m.sample
     sh = s["shaded"]
@@ -347,7 +357,5 @@ def _similar_rows(m: Measurements, claims: dict, tau: float) -> list[Claim]:
     rows.append(Claim("similar", f"\"{claims['fig11']}\"",
                       f"mean QD > mean D on {pct(fig11, 3)} of H; C2 is {pct(f['C2'], 3)}",
                       "confirmed" if abs(fig11 - f["C2"]) < 1e-9 else "wrong",
-                      f"the black region is C2 plus {pct(fig11 - f['C2'], 3)} of C1: the "
-                      "caption's 'Region C2' is not Table 1's C2" if abs(fig11 - f["C2"]) >= 1e-9
-                      else "the black region is C2"))
+                      _fig11_sentence(fig11, f["C1"], f["C2"])))
     return rows
