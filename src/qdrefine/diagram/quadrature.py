@@ -3,7 +3,10 @@ Gauss-Kronrod (7, 15) along ``x``.
 
 The rule is our own vectorized adaptive GK(7,15): each round evaluates the integrand (a vector
 of vertical-line root searches) at every pending interval's 15 nodes at once, which
-``scipy.integrate.quad`` (one scalar call per node) does not allow.
+``scipy.integrate.quad`` (one scalar call per node) does not allow. Measured on C3
+(24 Nov 2026, shared 2-core machine, load average 9.6): ours 2.0 s (1290 nodes, estimate
+5e-11), ``scipy.integrate.quad`` per slab at ``epsabs = epsrel = 1e-12`` 22.3 s (2100 scalar
+calls); the two areas agree to 2e-12.
 """
 
 from __future__ import annotations

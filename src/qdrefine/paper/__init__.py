@@ -33,7 +33,7 @@ from .sample import region_sample
 from .verdicts import measure
 
 __all__ = ["PAPER_CLAIMS", "PAPER_TABLE1", "write_all", "lemma_checks", "find_qhull_failure",
-           "region_sample", "compute_context", "ITERATED_SCHEMES"]
+           "region_sample", "compute_context", "ITERATED_SCHEMES", "nine_points"]
 
 #: Schemes of the iterated study.
 ITERATED_SCHEMES = ("7t-qd", "7t-le", "7t-d", "4t-le", "4t-red")
