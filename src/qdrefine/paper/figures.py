@@ -1,6 +1,7 @@
 """The paper's figures, recomputed, plus the maps its gray figures hide and the iterated
 study's maps. One function per figure; each returns a matplotlib Figure (Agg backend,
-imported lazily) and never saves it: :func:`save_all` does.
+imported lazily) and never saves it: :func:`save_all` does. One concern (the figures), hence
+over 400 lines.
 """
 
 from __future__ import annotations
@@ -378,7 +379,8 @@ def _iterated_fig(ctx, scheme):
     fig, axs = plt.subplots(1, 2, figsize=(10, 6), layout="constrained")
     img, ext = _grid_image(p, it.worst[-1])
     im = axs[0].imshow(img, origin="lower", extent=ext, cmap="viridis", aspect="equal",
-                       interpolation="nearest")
+                       interpolation="nearest", vmin=min(0.5, float(np.nanmin(img))),
+                       vmax=max(1.0, float(np.nanmax(img))))  # one scale for every scheme
     fig.colorbar(im, ax=axs[0], shrink=0.8,
                  label=f"worst descendant min angle / initial, levels 1-{it.levels}")
     img, ext = _grid_image(p, it.classes[-1])
