@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..partition import partition
 from ..predicates import orient_signs
 from .lemmas import has
 
@@ -45,8 +46,12 @@ def find_qhull_failure(trials: int = 2000, seed: int = 0) -> dict:
             failures += 1
             if found is None:
                 signs = orient_signs(p, np.array(bad, dtype=np.int64)) if bad else []
+                ours_p, ours_t = partition(v, "7t-d")
+                ours_signs = orient_signs(ours_p, ours_t)
                 found = {"trial": t, "vertices": v.tolist(), "points": p.tolist(),
                          "simplices": tri.tolist(), "degenerate": [b.tolist() for b in bad],
-                         "exact_orientation": [int(s) for s in signs]}
+                         "exact_orientation": [int(s) for s in signs],
+                         "ours_triangles": int(ours_t.shape[0]),
+                         "ours_positive": bool((ours_signs > 0).all())}
     return {"available": True, "version": scipy.__version__, "trials": trials,
             "failures": failures, "example": found}

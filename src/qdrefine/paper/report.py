@@ -272,7 +272,9 @@ def fig3(ctx) -> list[str]:
             f"instead of 7, degenerate (1-based, stencil order M N O D C Q B A P): "
             f"{[[i + 1 for i in d] for d in ex['degenerate']]}, exact orientation signs of the "
             f"rounded points {ex['exact_orientation']}. qdrefine's 7T-D (exact predicates on "
-            "the exact trisection points) returns 7 triangles.\n")
+            f"the exact trisection points) returns {ex['ours_triangles']} triangles, "
+            + ("all counter-clockwise (exact orientation)" if ex["ours_positive"] else
+               "NOT all counter-clockwise") + ".\n")
     return out
 
 
