@@ -117,8 +117,7 @@ def test_mutation_c2_c3(ctx):
 def test_mutation_similar_tolerance_from_table1(ctx):
     # keep only the largest strict gap of Table 1 (III, mean, LE < QD): tau grows past the
     # largest QD-D min-angle gap, so "negligible" becomes confirmed
-    table = tuple((r, a, " ".join(t if t in ("<", ">", "=") and False else t
-                                  for t in mn.replace(">", "=").replace("<", "=").split()),
+    table = tuple((r, a, mn.replace(">", "=").replace("<", "="),
                    me.replace(">", "=").replace("<", "=")) for r, a, mn, me in PAPER_TABLE1)
     table = tuple(row if row[0] != "III" else (row[0], row[1], row[2], "7TLE < 7QD = 7D")
                   for row in table)
@@ -127,6 +126,9 @@ def test_mutation_similar_tolerance_from_table1(ctx):
     m = dataclasses.replace(ctx["m"], tolerance=tol)
     assert 0 in _changed(ctx, "similar", m=m)  # row 0: "negligible"
     assert _family(ctx, "similar", m=m)[0].verdict == "confirmed"
+    sentence = f"from the paper's own usage: {tol.tau:.2f} deg"
+    assert sentence in build_report(dict(ctx, m=m, table=table))
+    assert sentence not in build_report(ctx)
 
 
 def test_mutation_cost(ctx):
