@@ -127,7 +127,23 @@ def _keys(sid, x, y, scale):
 
 
 def iterate(scheme: str, points: ArrayLike, levels: int = 6, digits: int = 9) -> Iterated:
-    """Refine the triangles of diagram ``points (K, 2)`` ``levels`` times by ``scheme``."""
+    """Refine the triangles of diagram ``points`` ``levels`` times by ``scheme``.
+
+    Parameters
+    ----------
+    scheme : str
+        Any scheme of :mod:`qdrefine.schemes`.
+    points : (K, 2) float
+        Diagram points (``0 <= x <= 1/2``, ``y > 0``) of the initial triangles.
+    levels : int
+        Uniform refinements, ``>= 1``.
+    digits : int
+        Shapes whose diagram coordinates agree when rounded to ``10^-digits`` are one class.
+
+    Returns
+    -------
+    Iterated
+    """
     name = get_scheme(scheme).name
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if levels < 1:
