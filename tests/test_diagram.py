@@ -169,6 +169,12 @@ def test_diagram_json(capsys):
     assert fr["C1"] + fr["C2"] + fr["C3"] == pytest.approx(fr["shaded"], abs=1e-8)
     assert obj["error_bound"] <= 1e-6
     assert 0 < obj["worst_qd_over_d_min_angle"] < 1
+    assert 0 < obj["worst_qd_over_d_min_angle_bound"] < 1e-9
+    by = obj["worst_qd_over_d_by_reading"]
+    assert set(by) == set(dg.READINGS)
+    for e in by.values():
+        assert e["lower"] <= e["value"] and e["bound"] >= e["value"] - e["lower"]
+    assert by["pentagon"]["value"] == obj["worst_qd_over_d_min_angle"]
     assert "paper_claims" in obj
 
 
@@ -177,3 +183,146 @@ def test_bad_options():
         dg.region_area("IV")
     with pytest.raises(ValueError, match="choose one of"):
         dg.partition_measure([0.3], [0.3], "7t-qd", measure="max")
+
+
+# ---------------------------------------------------------------------------------------
+# certified extrema against an independent 30-digit search
+
+
+def _mp_ratio_factory(mp):
+    """The 7T-QD / 7T-D ratio of each reading in mpmath, from the paper's coordinates
+    (Lemma 1: B, Q; Lemma 2: A, D, P; Definition 1: the fans), not from qdrefine."""
+    def points(x, y):
+        return {"M": (0, 0), "N": (1, 0), "O": (x, y), "D": (mp.mpf(1) / 3, 0),
+                "C": (mp.mpf(2) / 3, 0), "Q": ((2 + x) / 3, y / 3),
+                "B": ((1 + 2 * x) / 3, 2 * y / 3), "A": (2 * x / 3, 2 * y / 3),
+                "P": (x / 3, y / 3)}
+
+    def min_angle(p, tri):
+        out = []
+        for i in range(3):
+            a, b, c = p[tri[i]], p[tri[(i + 1) % 3]], p[tri[(i + 2) % 3]]
+            u = (b[0] - a[0], b[1] - a[1])
+            v = (c[0] - a[0], c[1] - a[1])
+            out.append(mp.atan2(abs(u[0] * v[1] - u[1] * v[0]), u[0] * v[0] + u[1] * v[1]))
+        return min(out)
+
+    fixed = ["MPD", "ADP", "BCQ", "CNQ"]
+    case3 = ["ADO", "CDO", "BCO"]       # Definition 1 (c): 7T-QD in the shaded region
+    case2 = ["ADO", "BDO", "BCD"]       # Definition 1 (b): 7T-D there
+    readings = {"pentagon": (case3, case2), "two": (case3[1:], case2[1:]),
+                "seven": (fixed + case3, fixed + case2),
+                "two-vs-refinement": (case3[1:], fixed + case2)}
+
+    def ratio(reading, x, y):
+        p = points(x, y)
+        q, d = readings[reading]
+        return min(min_angle(p, t) for t in q) / min(min_angle(p, t) for t in d)
+
+    def neg_gap(reading, x, y):  # QD - D in degrees: its minimum is minus the largest gap
+        p = points(x, y)
+        q, d = readings[reading]
+        return mp.degrees(min(min_angle(p, t) for t in q) - min(min_angle(p, t) for t in d))
+
+    ratio.neg_gap = neg_gap
+    return ratio
+
+
+def _mp_search(mp, ratio, reading):
+    r3 = 1 / mp.sqrt(3)
+    tiny = mp.mpf("1e-25")  # the base y = 0: the ratio's limit, to O(y^2)
+    curves = [  # (x(t), y(t), t0, t1): the boundary of {III, outside (x-1)^2+y^2=1/3}
+        (lambda t: t, lambda t: tiny, mp.mpf(2) / 5, 1 - r3),
+        (lambda t: 1 + r3 * mp.cos(t), lambda t: r3 * mp.sin(t), 5 * mp.pi / 6, mp.pi),
+        (lambda t: (1 + mp.cos(t)) / 3, lambda t: mp.sin(t) / 3, mp.pi / 3,
+         mp.acos(mp.mpf(5) / 13)),
+        (lambda t: mp.mpf(6) / 5 + 4 * mp.cos(t) / 5, lambda t: 4 * mp.sin(t) / 5,
+         mp.pi - mp.acos(mp.mpf(12) / 13), mp.pi),
+    ]
+    best = min(ratio(reading, x, y) for x, y in (
+        (mp.mpf(2) / 5, tiny), (1 - r3, tiny), (mp.mpf(1) / 2, mp.sqrt(mp.mpf(1) / 12)),
+        (mp.mpf(6) / 13, mp.mpf(4) / 13)))
+    g = (mp.sqrt(5) - 1) / 2
+    for fx, fy, t0, t1 in curves:
+        def f(t, fx=fx, fy=fy):
+            return ratio(reading, fx(t), max(fy(t), tiny))
+        n = 40
+        ts = [t0 + (t1 - t0) * i / n for i in range(n + 1)]
+        vs = [f(t) for t in ts]
+        for i in sorted(range(n + 1), key=lambda i: vs[i])[:3]:
+            a, b = ts[max(i - 1, 0)], ts[min(i + 1, n)]
+            c, d = b - g * (b - a), a + g * (b - a)
+            fc, fd = f(c), f(d)
+            while b - a > mp.mpf("1e-22"):
+                if fc < fd:
+                    b, d, fd = d, c, fc
+                    c = b - g * (b - a)
+                    fc = f(c)
+                else:
+                    a, c, fc = c, d, fd
+                    d = a + g * (b - a)
+                    fd = f(d)
+            best = min(best, fc, fd, vs[i])
+    return best
+
+
+def test_worst_ratio_agrees_with_a_30_digit_search_of_every_arc_and_corner():
+    import mpmath  # shipped with sympy, a test dependency
+
+    mp = mpmath.mp
+    ratio = _mp_ratio_factory(mp)
+    with mpmath.workdps(30):
+        _check_worst_ratios(mp, ratio)
+
+
+def _check_worst_ratios(mp, ratio):
+    for reading in dg.READINGS:
+        ours = dg.worst_ratio(reading)
+        ref = _mp_search(mp, ratio, reading)
+        assert abs(ours.value - float(ref)) < 1e-9, reading
+        # the certified interval contains the independent value
+        assert ours.lower - 1e-12 <= float(ref) <= ours.value + 1e-12, reading
+        assert ours.bound < 1e-9
+        big = dg.largest_gap(reading)
+        ref_gap = -_mp_search(mp, ratio.neg_gap, reading)
+        assert abs(big.value - float(ref_gap)) < 1e-9, reading
+        assert big.lower - 1e-12 <= float(ref_gap) <= big.upper + 1e-12
+        # and the value is attained where it says
+        x, y = ours.point
+        assert float(ratio(reading, mp.mpf(x), mp.mpf(max(y, 1e-25)))) == pytest.approx(
+            ours.value, abs=1e-12)
+
+
+def test_closure_and_boundary_of_the_shaded_region():
+    from qdrefine.diagram import extrema as ex
+
+    rng = np.random.default_rng(11)
+    x, y = rng.uniform(0.39, 0.51, 50000), rng.uniform(1e-6, 0.33, 50000)
+    assert np.array_equal(ex.in_closure(x, y), dg._pred("shaded")(x, y))
+    arcs, _ = dg.decision_arcs()
+    for curve in ex.BOUNDARY[1:]:
+        assert any(abs(a.cx - curve.cx) < 1e-12 and abs(a.r2 - curve.r**2) < 1e-12
+                   for a in arcs)
+    for cx, cy in ex.CORNERS.values():  # every corner is on two of the curves
+        on = [c for c in ex.BOUNDARY
+              if (c.r == 0 and cy == 0) or abs(math.hypot(cx - c.cx, cy) - c.r) < 1e-12]
+        assert len(on) == 2
+    # the ratio away from the boundary is above the certified minimum (no interior dip)
+    for reading in dg.READINGS:
+        e = dg.worst_ratio(reading)
+        inside = ex.in_closure(x, y)
+        assert ex.ratio(x[inside], y[inside], reading).min() >= e.lower
+
+
+def test_interval_enclosures_contain_the_point_values():
+    from qdrefine.diagram import extrema as ex
+
+    rng = np.random.default_rng(12)
+    x0 = rng.uniform(0.4, 0.5, 300)
+    y0 = rng.uniform(0, 0.3, 300)
+    w = rng.uniform(0, 0.02, 300)
+    names = ex.READINGS["seven"][1]
+    lo, hi = ex._box_angles(ex._angle_coefficients(names), x0, x0 + w, y0, y0 + w)
+    for s, t in rng.uniform(0, 1, (20, 2)):
+        v = ex.normalized_angles(x0 + s * w, y0 + t * w, names)
+        assert np.all(lo <= v) and np.all(v <= hi)

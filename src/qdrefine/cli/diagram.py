@@ -40,7 +40,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{k:8} {v:>14.10f} {obj['areas'][k]:>14.10f} {obj['errors'][k]:>9.1e}  "
               f"{obj['method']['regions'][k]}")
     print(f"7T-LE min angle > 7T-QD min angle on {obj['le_min_above_qd']:.10f} of the half")
-    print(f"worst 7T-QD / 7T-D min angle over the shaded region: "
-          f"{obj['worst_qd_over_d_min_angle']:.8f}")
+    for r, e in obj["worst_qd_over_d_by_reading"].items():
+        print(f"worst 7T-QD / 7T-D min angle ({r}): {e['value']:.12f} "
+              f"(certified bound {e['bound']:.1e}; {e['where']})")
     print(f"largest error estimate of any fraction: {obj['error_bound']:.1e}")
     return 0

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "recompute the paper's figures, Table 1 and claims into OUTDIR (report.md, PNG, SVG)"
+HELP = ("recompute the paper's figures, Table 1, claims, certified extrema and the iterated "
+        "refinement study into OUTDIR (report.md, PNG, SVG)")
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:

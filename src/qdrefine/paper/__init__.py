@@ -1,0 +1,91 @@
+"""Every figure, table and numeric claim of the 7T-QD paper, recomputed.
+
+:func:`write_all` draws the paper's figures (matplotlib, Agg backend, imported lazily) and
+writes ``report.md``: each claim of the paper quoted beside the value computed here, with a
+verdict and a sentence derived from the computed values at run time. The paper's own figures
+appear only in :data:`PAPER_CLAIMS` and :data:`PAPER_TABLE1` (quotations, never results).
+
+Modules, one concern each: :mod:`.claims` (the quotations), :mod:`.sample` (the grid over
+the diagram), :mod:`.table1` (Table 1 and the tolerance for "similar"), :mod:`.verdicts`
+(every other claim), :mod:`.cost` (decision times), :mod:`.lemmas` (SymPy), :mod:`.qhull`
+(Fig. 3), :mod:`.iterated` (iterated refinement), :mod:`.figures`, :mod:`.report`.
+
+SciPy (Fig. 3) and SymPy (Lemmas 1 and 2) are optional (``pip install qdrefine[paper]``);
+without them the report says what could not be checked.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import diagram as dg
+from .claims import PAPER_CLAIMS, PAPER_TABLE1
+from .cost import decision_costs
+from .figures import save_all
+from .iterated import counterexample_search, diagram_grid, iterate
+from .lemmas import has, lemma_checks
+from .qhull import find_qhull_failure, nine_points
+from .report import build_report
+from .sample import region_sample
+from .verdicts import measure
+
+__all__ = ["PAPER_CLAIMS", "PAPER_TABLE1", "write_all", "lemma_checks", "find_qhull_failure",
+           "region_sample", "compute_context", "ITERATED_SCHEMES", "nine_points"]
+
+#: Schemes of the iterated study.
+ITERATED_SCHEMES = ("7t-qd", "7t-le", "7t-d", "4t-le", "4t-red")
+
+
+def _qhull_ns(n: int = 2000, seed: int = 0) -> float | None:
+    """Time per triangle of ``scipy.spatial.Delaunay`` on the nine points (float)."""
+    if not has("scipy"):
+        return None
+    from scipy.spatial import Delaunay
+
+    rng = np.random.default_rng(seed)
+    pts = [nine_points(v) for v in rng.uniform(0, 1, (n, 3, 2))]
+    t0 = time.perf_counter()
+    for p in pts:
+        Delaunay(p)
+    return (time.perf_counter() - t0) / n * 1e9
+
+
+def compute_context(step: float = 1 / 1200, tol: float = 1e-10, iterated_grid: int = 60,
+                    levels: int = 6, angle_measure: bool = True) -> dict:
+    """Every number the report and the figures need (see :mod:`.report`)."""
+    res = dg.compute(tol=tol, angle_measure=angle_measure)
+    res.extra_areas = {
+        "qd_mean_above_d": dg.region_area("qd_mean_above_d", tol=tol).value,
+        "I_II_differ": dg.arc_area(lambda x, y: dg._pred("shaded")(x, y)
+                                   & (dg._pred("I")(x, y) | dg._pred("II")(x, y))),
+    }
+    sample = region_sample(step)
+    m = measure(res, sample, decision_costs(), _qhull_ns())
+    t0 = time.perf_counter()
+    pts = diagram_grid(iterated_grid)
+    its = {s: iterate(s, pts, levels) for s in ITERATED_SCHEMES}
+    search = {s: counterexample_search(s, levels) for s in ITERATED_SCHEMES}
+    iterated_s = time.perf_counter() - t0
+    return {"res": res, "sample": sample, "m": m, "lemmas": lemma_checks(),
+            "qhull": find_qhull_failure(), "iterated": its, "search": search,
+            "iterated_seconds": iterated_s, "claims": PAPER_CLAIMS, "table": PAPER_TABLE1}
+
+
+def write_all(outdir: str | Path, figures: bool = True) -> Path:
+    """Recompute everything and write the figures and ``report.md`` into ``outdir``."""
+    start = time.time()
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    ctx = compute_context()
+    ctx["figures"] = save_all(out, ctx) if figures else []
+    ctx["seconds"] = time.time() - start
+    path = out / "report.md"
+    tmp = out / ".report.md.tmp"
+    tmp.write_text(build_report(ctx))
+    tmp.replace(path)
+    return path
+
+
