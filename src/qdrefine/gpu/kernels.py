@@ -8,9 +8,9 @@ Each is the device twin of a CPU kernel and writes the same values to the same p
   formula: ``2.0 * a`` and ``0.5 * (a + b)`` are exact, so a fused multiply-add computes
   the same double as the CPU, and the division by 3 is IEEE's, correctly rounded);
 * :func:`emit`: :func:`qdrefine.kernels.emit` with the labelling and signs of
-  :mod:`qdrefine.gpu.predicates`; a triangle some sign of which needs the exact stage is
-  listed in ``hard`` instead, and :func:`emit_rows` writes its children once the CPU has
-  decided it;
+  :mod:`qdrefine.gpu.predicates`, stages 1 and 2; a triangle some sign of which needs the
+  exact stage is listed in ``hard`` instead, :func:`decide_rows` decides it with all three
+  stages and :func:`emit_rows` writes its children;
 * :func:`repeat` and :func:`split_edges`: ``np.repeat`` of the cell tags and
   :func:`qdrefine.refine.split_tagged_edges` of the tagged edges.
 """
@@ -18,12 +18,13 @@ Each is the device twin of a CPU kernel and writes the same values to the same p
 from __future__ import annotations
 
 from numba import cuda
-from numba.types import int64
+from numba.types import float64, int64
 
 from .numbering import edge_id
-from .predicates import decide_fast, suspect
+from ..predicates import SCRATCH
+from .predicates import decide_exact, decide_fast, suspect
 
-__all__ = ["new_points", "emit", "emit_rows", "repeat", "split_edges"]
+__all__ = ["new_points", "emit", "decide_rows", "emit_rows", "repeat", "split_edges"]
 
 MAX_LOCAL = 9  # own local points of a triangle: 3 corners + 3 edges x at most 2
 
@@ -70,7 +71,9 @@ def _write_children(t, im, jn, row, triangles, starts, first, hi, n, per_edge, f
         back = 1 if a > b else 0
         for j in range(per_edge):
             loc[3 + per_edge * i + j] = base + j + back * (per_edge - 1 - 2 * j)
-    f0 = ((im * 3 + jn) * n_rows + row) * width
+    # int64 casts: the table row is an int8 (a numpy scalar under the simulator, where
+    # int8 arithmetic would wrap)
+    f0 = ((int64(im) * 3 + int64(jn)) * n_rows + int64(row)) * width
     o = t * width
     for q in range(width):
         out[o + q] = loc[frames[f0 + q]]
@@ -102,20 +105,30 @@ def emit(points, triangles, starts, first, hi, per_edge, forms, factors, lut, fr
 
 
 @cuda.jit
-def corners(points, triangles, rows, out):
-    """``out[r] = (x0, y0, x1, y1, x2, y2)`` of triangle ``rows[r]``."""
+def decide_rows(points, triangles, rows, forms, factors, lut, labels):
+    """``labels[r] = (iM, iN, iO, row)`` of triangle ``rows[r]`` by all three stages
+    (:func:`qdrefine.gpu.predicates.decide_exact`), for the triangles :func:`emit` listed."""
     r = cuda.grid(1)
     if r < rows.shape[0]:
+        buf = cuda.local.array(SCRATCH, dtype=float64)
+        cc = cuda.local.array(6, dtype=float64)
         t = rows[r]
-        for i in range(3):
-            out[r, 2 * i] = points[triangles[t, i], 0]
-            out[r, 2 * i + 1] = points[triangles[t, i], 1]
+        v0 = triangles[t, 0]
+        v1 = triangles[t, 1]
+        v2 = triangles[t, 2]
+        im, jn, ko, row = decide_exact(points[v0, 0], points[v0, 1], points[v1, 0],
+                                       points[v1, 1], points[v2, 0], points[v2, 1], forms,
+                                       factors, lut, buf, cc)
+        labels[r, 0] = im
+        labels[r, 1] = jn
+        labels[r, 2] = ko
+        labels[r, 3] = row
 
 
 @cuda.jit
 def emit_rows(n, triangles, starts, first, hi, per_edge, frames, width, rows, labels, out):
     """:func:`emit`'s output for triangles ``rows`` with labellings and table rows
-    ``labels (R, 4)`` decided elsewhere (``n``: the number of old points)."""
+    ``labels (R, 4)`` from :func:`decide_rows` (``n``: the number of old points)."""
     r = cuda.grid(1)
     if r < rows.shape[0]:
         n_rows = frames.shape[0] // (9 * width)

@@ -1,13 +1,19 @@
-"""Stages 1 and 2 of the exact predicates, and the canonical labelling, as CUDA device
-functions.
+"""The exact predicates and the canonical labelling as CUDA device functions.
 
-These are line-by-line ports of :mod:`qdrefine.predicates` and the labelling of
-:mod:`qdrefine.kernels` (same operations in the same order, same filter bound), with one
-difference: stage 3 (Shewchuk's expansions, a 160-double work buffer per thread) is not
-ported. Where the CPU would call it, these functions return :data:`UNDECIDED` and the
-triangle is handed to the CPU kernel (:func:`qdrefine.kernels.decide`) by
-:mod:`qdrefine.gpu.refine`. Every sign returned here is proved (a filter sign, or an
-error-free product comparison), so a triangle decided here gets the CPU's labelling and row.
+Line-by-line ports of :mod:`qdrefine.predicates` and of the labelling of
+:mod:`qdrefine.kernels` (same operations in the same order, same filter bound), in two
+entry points:
+
+* :func:`decide_fast`: stages 1 and 2 only (scalars, no work buffer), used by the emission
+  kernel for every triangle; where the CPU would go on to stage 3 it returns row -1 and the
+  triangle is listed;
+* :func:`decide_exact`: all three stages, Shewchuk's expansions in a per-thread work buffer
+  of :data:`qdrefine.predicates.SCRATCH` doubles, run by a second kernel on the listed
+  triangles only (none on grids and on most meshes; a few percent of some levels, where
+  children of curved meshes have near-ties with inexact coordinate differences).
+
+Every sign is proved, so each triangle gets the CPU's labelling and table row, whichever
+stage decided.
 
 Stage 2 needs a fused multiply-add rounded once: ``cuda.fma`` on a device. The CUDA
 simulator's ``cuda.fma`` computes ``a * b + c`` with two roundings, so under the simulator the
@@ -20,10 +26,10 @@ from numba import cuda, njit
 from numba.core import config
 
 from ..kernels import _APEX, _STRICT
-from ..predicates import FILTER, UNDECIDED
+from ..predicates import _EXPANSION, _FORM_I, _FORM_J, _LENGTH_C, _LENGTH_I, FILTER, UNDECIDED
 from ..predicates import _fma as _llvm_fma
 
-__all__ = ["UNDECIDED", "decide_fast", "suspect"]
+__all__ = ["UNDECIDED", "decide_exact", "decide_fast", "suspect"]
 
 SIMULATOR = bool(config.ENABLE_CUDASIM)
 
@@ -258,6 +264,12 @@ def canonical(x0, y0, x1, y1, x2, y2):
         s12 = length_sign_stage2(x2, y2, x0, y0, x0, y0, x1, y1)
     if s01 == UNDECIDED or s02 == UNDECIDED or s12 == UNDECIDED:
         return -1, -1, -1
+    return _labels(x0, y0, x1, y1, x2, y2, s01, s02, s12)
+
+
+@cuda.jit(device=True)
+def _labels(x0, y0, x1, y1, x2, y2, s01, s02, s12):
+    """``(iM, iN, iO)`` from the three exact signs of the length comparisons."""
     code = (s01 + 1) + 3 * (s02 + 1) + 9 * (s12 + 1)
     packed = _STRICT[code]
     if packed >= 0:
@@ -310,3 +322,112 @@ def suspect(ax, ay, bx, by, cx, cy, lattice):
     d = 4.0 * eps * big
     change = 3.0 * 1.4142135623730951 * longest * d + 6.0 * d * d
     return area <= 8.0 * lattice * lattice * change + 4.0 * longest * d
+
+
+# ----------------------------------------------------------------------------------------
+# stage 3 (qdrefine.predicates._exact_sign and its callers) and the full decision
+
+
+@cuda.jit(device=True)
+def _exact_sign(ii, jj, cc, n_terms, buf):
+    """:func:`qdrefine.predicates._exact_sign`."""
+    n = 0
+    for k in range(n_terms):
+        c = cc[k]
+        if c == 0.0:
+            continue
+        for p in range(2):
+            a = buf[2 * ii[k] + p]
+            if a == 0.0:
+                continue
+            for q in range(2):
+                b = buf[2 * jj[k] + q]
+                if b == 0.0:
+                    continue
+                x, y = _two_product(a, b)
+                s0, t0 = _two_product(c, x)
+                s1, t1 = _two_product(c, y)
+                for v in range(4):
+                    g = s0 if v == 0 else (t0 if v == 1 else (s1 if v == 2 else t1))
+                    if g == 0.0:
+                        continue
+                    h = 0
+                    for i in range(n):
+                        g, hh = _two_sum(g, buf[_EXPANSION + i])
+                        if hh != 0.0:
+                            buf[_EXPANSION + h] = hh
+                            h += 1
+                    if g != 0.0 or h == 0:
+                        buf[_EXPANSION + h] = g
+                        h += 1
+                    n = h
+    if n == 0:
+        return 0
+    top = buf[_EXPANSION + n - 1]
+    return 1 if top > 0.0 else (-1 if top < 0.0 else 0)
+
+
+@cuda.jit(device=True)
+def _length_sign_exact(ax, ay, bx, by, cx, cy, dx, dy, buf):
+    buf[0], buf[1] = _two_diff(bx, ax)
+    buf[2], buf[3] = _two_diff(by, ay)
+    buf[4], buf[5] = _two_diff(dx, cx)
+    buf[6], buf[7] = _two_diff(dy, cy)
+    return _exact_sign(_LENGTH_I, _LENGTH_I, _LENGTH_C, 4, buf)
+
+
+@cuda.jit(device=True)
+def _length_sign(ax, ay, bx, by, cx, cy, dx, dy, buf):
+    """Stages 2 and 3 of a squared-length comparison
+    (:func:`qdrefine.predicates.length_sign_slow`)."""
+    s = length_sign_stage2(ax, ay, bx, by, cx, cy, dx, dy)
+    if s != UNDECIDED:
+        return s
+    return _length_sign_exact(ax, ay, bx, by, cx, cy, dx, dy, buf)
+
+
+@cuda.jit(device=True)
+def _form_sign_exact(ax, ay, bx, by, cx, cy, kuu, kww, kuw, buf, cc):
+    """Stage 3 of :func:`qdrefine.predicates.form_sign` (``cc``: 6 doubles of scratch)."""
+    buf[0], buf[1] = _two_diff(bx, ax)
+    buf[2], buf[3] = _two_diff(by, ay)
+    buf[4], buf[5] = _two_diff(cx, ax)
+    buf[6], buf[7] = _two_diff(cy, ay)
+    cc[0] = kuu
+    cc[1] = kuu
+    cc[2] = kww
+    cc[3] = kww
+    cc[4] = kuw
+    cc[5] = kuw
+    return _exact_sign(_FORM_I, _FORM_J, cc, 6, buf)
+
+
+@cuda.jit(device=True)
+def decide_exact(x0, y0, x1, y1, x2, y2, forms, factors, lut, buf, cc):
+    """:func:`qdrefine.kernels.decide`, all three stages: ``(iM, iN, iO, row)``."""
+    s01 = length_filter(x2 - x1, y2 - y1, x0 - x2, y0 - y2)
+    s02 = length_filter(x2 - x1, y2 - y1, x1 - x0, y1 - y0)
+    s12 = length_filter(x0 - x2, y0 - y2, x1 - x0, y1 - y0)
+    if s01 == 0 and not congruent(x1, y1, x2, y2, x2, y2, x0, y0):
+        s01 = _length_sign(x1, y1, x2, y2, x2, y2, x0, y0, buf)
+    if s02 == 0 and not congruent(x1, y1, x2, y2, x0, y0, x1, y1):
+        s02 = _length_sign(x1, y1, x2, y2, x0, y0, x1, y1, buf)
+    if s12 == 0 and not congruent(x2, y2, x0, y0, x0, y0, x1, y1):
+        s12 = _length_sign(x2, y2, x0, y0, x0, y0, x1, y1, buf)
+    im, jn, ko = _labels(x0, y0, x1, y1, x2, y2, s01, s02, s12)
+    mx, my = _pick(im, x0, x1, x2), _pick(im, y0, y1, y2)
+    nx, ny = _pick(jn, x0, x1, x2), _pick(jn, y0, y1, y2)
+    ox, oy = _pick(ko, x0, x1, x2), _pick(ko, y0, y1, y2)
+    code = 0
+    power = 1
+    for f in range(forms.shape[0]):
+        s = form_filter(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1], forms[f, 2])
+        if s == 0:
+            s = form_sign_stage2(mx, my, nx, ny, ox, oy, factors[f, 0], factors[f, 1],
+                                 factors[f, 2], factors[f, 3], factors[f, 4])
+            if s == UNDECIDED:
+                s = _form_sign_exact(mx, my, nx, ny, ox, oy, forms[f, 0], forms[f, 1],
+                                     forms[f, 2], buf, cc)
+        code += (s + 1) * power
+        power *= 3
+    return im, jn, ko, lut[code]

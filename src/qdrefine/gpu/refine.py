@@ -2,13 +2,13 @@
 arrays staying on the device from one level to the next.
 
 Per level: the edge numbering (:mod:`qdrefine.gpu.numbering`), the new points and the
-decision and emission (:mod:`qdrefine.gpu.kernels`). The decision runs the float filter
-and the error-free stage 2 on the device; the few triangles some sign of which needs the
-exact expansions (none on grids or ordinary meshes; near-ties whose coordinate differences
-are not exact in float64) are copied to the host, decided by the CPU kernel
-(:func:`qdrefine.kernels.decide`) and their children written on the device. The rounding
-check of ``strict`` counts the suspects on the device and, only if there are any (almost
-never), runs :func:`qdrefine.refine.check_rounding` on host copies.
+decision and emission (:mod:`qdrefine.gpu.kernels`). Every decision is exact and made on
+the device: the emission kernel runs the float filter and the error-free stage 2; the few
+triangles some sign of which needs Shewchuk's expansions (none on grids; near-ties whose
+coordinate differences are not exact in float64) are listed and decided by a second
+kernel with a per-thread work buffer. The rounding check of ``strict`` counts the suspects
+on the device and, only if there are any (almost never), runs
+:func:`qdrefine.refine.check_rounding` on host copies.
 """
 
 from __future__ import annotations
@@ -16,13 +16,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import cuda, njit
+from numba import cuda
 from numpy.typing import NDArray
 
-from ..kernels import _frame_tables, decide
+from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, memory_needed
 from ..mesh import Mesh, index_dtype
-from ..predicates import SCRATCH, factor_forms
+from ..predicates import factor_forms
 from ..refine import as_count, check_rounding
 from ..schemes import Scheme, get_scheme
 from . import kernels as k
@@ -42,6 +42,9 @@ class DeviceMesh:
     cell_tags : (M',) int64 or None
     edges : (K', 2), dtype of ``triangles``, or None
     edge_tags : (K',) int64 or None
+    exact_stage : tuple of int
+        Per level, the triangles some sign of which needed the exact stage (Shewchuk's
+        expansions, run on the device by a second kernel; 0 on grids and most meshes).
     """
 
     points: object
@@ -49,6 +52,7 @@ class DeviceMesh:
     cell_tags: object = None
     edges: object = None
     edge_tags: object = None
+    exact_stage: tuple[int, ...] = ()
 
 
 def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int = 1, *,
@@ -108,20 +112,20 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
         _check_indices(tagged, n, "edges")
     check_device_memory(n, m, sch, levels, tags is not None)
     tables = _Tables(sch)
+    exact = []
     for level in range(1, levels + 1):
         try:
-            pts, tri, tags, tagged, etags = _level(pts, tri, tags, tagged, etags, tables,
-                                                   strict)
+            pts, tri, tags, tagged, etags, n_hard = _level(pts, tri, tags, tagged, etags,
+                                                           tables, strict)
         except ValueError as exc:
             raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
-    out = DeviceMesh(pts, tri, tags, tagged, etags)
+        exact.append(n_hard)
+    arrays = (pts, tri, tags, tagged, etags)
     if like_cupy:
         import cupy
 
-        out = DeviceMesh(*(None if a is None else cupy.asarray(a) for a in
-                           (out.points, out.triangles, out.cell_tags, out.edges,
-                            out.edge_tags)))
-    return out
+        arrays = tuple(None if a is None else cupy.asarray(a) for a in arrays)
+    return DeviceMesh(*arrays, exact_stage=tuple(exact))
 
 
 def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
@@ -192,13 +196,11 @@ def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool):
     n_hard, n_suspect = (int(c) for c in counters.copy_to_host())
     if n_hard:
         rows = hard[:n_hard]
-        corners = cuda.device_array((n_hard, 6), dtype=np.float64)
-        k.corners[blocks(n_hard), THREADS](pts, tri, rows, corners)
-        labels = _decide_rows(corners.copy_to_host(), tab.forms_host, tab.factors_host,
-                              tab.lut_host)
+        labels = cuda.device_array((n_hard, 4), dtype=np.int64)
+        k.decide_rows[blocks(n_hard), THREADS](pts, tri, rows, tab.forms, tab.factors,
+                                               tab.lut, labels)
         k.emit_rows[blocks(n_hard), THREADS](n, tri, ed.starts, ed.first, ed.hi, per,
-                                             tab.frames, tab.width, rows,
-                                             cuda.to_device(labels), flat)
+                                             tab.frames, tab.width, rows, labels, flat)
     if strict and n_suspect:
         check_rounding(_host(pts), _host(tri), _host(new_pts), _host(children), per)
     new_tags = new_edges = new_etags = None
@@ -213,23 +215,7 @@ def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool):
             k.split_edges[blocks(n_tagged), THREADS](tagged, n, ed.starts, ed.first, ed.hi,
                                                      per, new_edges)
             k.repeat[blocks(new_etags.shape[0]), THREADS](etags, per + 1, new_etags)
-    return new_pts, children, new_tags, new_edges, new_etags
-
-
-@njit(cache=True)
-def _decide_rows(c, forms, factors, lut):
-    """The CPU's :func:`qdrefine.kernels.decide` for corner rows ``c (R, 6)``:
-    ``(R, 4) int64`` rows ``(iM, iN, iO, row)``."""
-    out = np.empty((c.shape[0], 4), dtype=np.int64)
-    buf = np.empty(SCRATCH)
-    for r in range(c.shape[0]):
-        im, jn, ko, row = decide(c[r, 0], c[r, 1], c[r, 2], c[r, 3], c[r, 4], c[r, 5], forms,
-                                 factors, lut, buf)
-        out[r, 0] = im
-        out[r, 1] = jn
-        out[r, 2] = ko
-        out[r, 3] = row
-    return out
+    return new_pts, children, new_tags, new_edges, new_etags, n_hard
 
 
 # ----------------------------------------------------------------------------------------

@@ -1,0 +1,46 @@
+"""The GPU path (:mod:`qdrefine.gpu`) against the CPU path, bit for bit.
+
+The cases live in ``gpu_cases.py`` and run in a child pytest process, because numba picks
+the CUDA simulator or the real target once, when ``numba.cuda`` is first imported: under
+the simulator (``NUMBA_ENABLE_CUDASIM=1``) always, and on the real target too when this
+machine has a CUDA GPU. Nothing in this process touches ``numba.cuda``, so the other test
+modules are unaffected.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).parent
+SIMULATOR = "NUMBA_ENABLE_CUDASIM"
+
+
+def _gpu_present() -> bool:
+    """Whether numba's real CUDA target finds a device (asked in a child process)."""
+    env = {k: v for k, v in os.environ.items() if k != SIMULATOR}
+    probe = subprocess.run(
+        [sys.executable, "-c", "from numba import cuda; print(cuda.is_available())"],
+        env=env, capture_output=True, text=True, timeout=120)
+    return probe.stdout.strip().endswith("True")
+
+
+TARGETS = ["simulator"] + (["gpu"] if _gpu_present() else [])
+
+
+@pytest.mark.parametrize("target", TARGETS)
+def test_gpu_path_matches_the_cpu_path(target):
+    env = {k: v for k, v in os.environ.items() if k != SIMULATOR}
+    if target == "simulator":
+        env[SIMULATOR] = "1"
+    run = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+         str(HERE / "gpu_cases.py")],
+        cwd=HERE.parent, env=env, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, f"gpu_cases.py on the {target}:\n{run.stdout[-6000:]}" \
+                                f"\n{run.stderr[-2000:]}"
+    assert " passed" in run.stdout and " failed" not in run.stdout
