@@ -59,7 +59,7 @@ def test_random_tagged_meshes(n, seed, shear, shuffle, scheme, levels):
                  outcome(lambda: refine_mesh(mesh, scheme, levels)))
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=30, deadline=None)
 @given(tri=triangle_strategy(), scheme=st.sampled_from(SCHEMES), levels=st.integers(1, 2),
        strict=st.booleans())
 def test_single_triangles_with_ties_and_near_ties(tri, scheme, levels, strict):

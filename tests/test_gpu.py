@@ -38,7 +38,7 @@ def test_gpu_path_matches_the_cpu_path(target):
     if target == "simulator":
         env[SIMULATOR] = "1"
     run = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+        [sys.executable, "-m", "pytest", "-o", "addopts=", "-q", "-p", "no:cacheprovider",
          str(HERE / "gpu_cases.py")],
         cwd=HERE.parent, env=env, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, f"gpu_cases.py on the {target}:\n{run.stdout[-6000:]}" \
