@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import cuda
 
-__all__ = ["DeviceEdges", "THREADS", "blocks", "edge_id", "exclusive_scan", "sort_edges"]
+__all__ = ["DeviceEdges", "THREADS", "blocks", "edge_id", "exclusive_scan", "sort_edges",
+           "zeros"]
 
 THREADS = 128  #: threads per block of every kernel
 SCAN_CHUNK = 32  #: elements per thread in :func:`exclusive_scan`
@@ -61,16 +62,31 @@ def sort_edges(triangles, n_points: int) -> DeviceEdges:
     """Number the edges of device ``triangles (M, 3)`` (indices in ``[0, n_points)``)."""
     m = triangles.shape[0]
     n = int(n_points)
-    counts = cuda.to_device(np.zeros(n, dtype=np.int32))
+    counts = zeros(n, np.int32)
     _count[blocks(m), THREADS](triangles, counts)
     starts = exclusive_scan(counts)
-    counts = cuda.to_device(np.zeros(n, dtype=np.int32))  # fill pointers
+    counts = zeros(n, np.int32)  # fill pointers
     hi = cuda.device_array(3 * m, dtype=triangles.dtype)
     _scatter[blocks(m), THREADS](triangles, starts, counts, hi)
     _sort_runs[blocks(n), THREADS](starts, hi, counts)  # counts := distinct per vertex
     first = exclusive_scan(counts)
     n_edges = int(first[n:].copy_to_host()[0]) if n else 0
     return DeviceEdges(starts, first, hi, n_edges)
+
+
+def zeros(size: int, dtype):
+    """A device array of zeros, filled on the device (no host copy)."""
+    out = cuda.device_array(size, dtype=dtype)
+    if size:
+        _zero[blocks(size), THREADS](out)
+    return out
+
+
+@cuda.jit
+def _zero(a):
+    i = cuda.grid(1)
+    if i < a.shape[0]:
+        a[i] = 0
 
 
 @cuda.jit
