@@ -74,9 +74,9 @@ def test_single_triangles_with_ties_and_near_ties(tri, scheme, levels, strict):
 
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_structured_and_unstructured_examples(scheme):
-    """The right isosceles grid (every triangle an exact tie, decided by stage 2) and the
-    plate with a hole (tags, curved boundary; some children of the first level need the
-    exact stage)."""
+    """The right isosceles grid (every triangle an exact tie, decided by stage 2 at the
+    first level; at the second, 7T-LE and 7T-D need the exact stage for some children) and
+    the plate with a hole (tags, curved boundary)."""
     for mesh in (examples.square(2), examples.plate_with_hole(8, 2)):
         out = refine_device(mesh.points, mesh.triangles, scheme, 2, cell_tags=mesh.cell_tags,
                             edges=mesh.edges, edge_tags=mesh.edge_tags)
