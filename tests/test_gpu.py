@@ -44,3 +44,22 @@ def test_gpu_path_matches_the_cpu_path(target):
     assert run.returncode == 0, f"gpu_cases.py on the {target}:\n{run.stdout[-6000:]}" \
                                 f"\n{run.stderr[-2000:]}"
     assert " passed" in run.stdout and " failed" not in run.stdout
+
+
+def test_without_the_simulator_a_missing_gpu_is_one_clear_error():
+    """Off the simulator: refined on a GPU when there is one, else one ``RuntimeError``
+    line saying so."""
+    env = {k: v for k, v in os.environ.items() if k != SIMULATOR}
+    code = ("from qdrefine import examples, refine\n"
+            "try:\n"
+            "    print(refine(examples.square(1), device='cuda').n_triangles)\n"
+            "except RuntimeError as exc:\n"
+            "    print('RuntimeError:', exc)\n")
+    run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    if "gpu" in TARGETS:
+        assert run.stdout.strip() == "14"
+    else:
+        assert run.stdout.startswith("RuntimeError: device='cuda': no CUDA GPU is available")
+        assert run.stdout.count("\n") == 1

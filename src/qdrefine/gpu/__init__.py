@@ -17,9 +17,10 @@ except ImportError as exc:  # pragma: no cover - depends on the installed numba
     raise ImportError("qdrefine.gpu needs numba's CUDA target: pip install 'qdrefine[gpu]' "
                       f"({exc})") from None
 
-from .refine import DeviceMesh, check_device_memory, refine_device, refine_mesh
+from .refine import DeviceMesh, check_device_memory, refine_device, refine_mesh, require_gpu
 
-__all__ = ["DeviceMesh", "DEVICES", "check_device_memory", "refine_device", "refine_mesh"]
+__all__ = ["DeviceMesh", "DEVICES", "check_device_memory", "refine_device", "refine_mesh",
+           "require_gpu"]
 
 #: Values of ``device=`` that run here.
 DEVICES = ("cuda",)

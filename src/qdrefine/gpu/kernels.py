@@ -20,8 +20,8 @@ from __future__ import annotations
 from numba import cuda
 from numba.types import float64, int64
 
-from .numbering import edge_id
 from ..predicates import SCRATCH
+from .numbering import edge_id
 from .predicates import decide_exact, decide_fast, suspect
 
 __all__ = ["new_points", "emit", "decide_rows", "emit_rows", "repeat", "split_edges"]

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import cuda
+from numba.core import config
 from numpy.typing import NDArray
 
 from ..kernels import _frame_tables
@@ -28,7 +29,7 @@ from ..schemes import Scheme, get_scheme
 from . import kernels as k
 from .numbering import THREADS, blocks, sort_edges
 
-__all__ = ["DeviceMesh", "refine_device", "refine_mesh"]
+__all__ = ["DeviceMesh", "refine_device", "refine_mesh", "require_gpu"]
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,7 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
     """
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
+    require_gpu()
     like_cupy = type(points).__module__.split(".")[0] == "cupy"
     pts = _device(points, "points", (np.float64,), 2)
     tri = _device(triangles, "triangles", (np.int32, np.int64), 3)
@@ -128,6 +130,15 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
     return DeviceMesh(*arrays, exact_stage=tuple(exact))
 
 
+def require_gpu() -> None:
+    """Raise ``RuntimeError`` (one line) when numba finds no CUDA device and the simulator
+    is off."""
+    if not config.ENABLE_CUDASIM and not cuda.is_available():
+        raise RuntimeError("device='cuda': no CUDA GPU is available to numba "
+                           "(numba.cuda.is_available() is False; check the driver, or run "
+                           "under the simulator with NUMBA_ENABLE_CUDASIM=1)")
+
+
 def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
                 strict: bool = True) -> Mesh:
     """:func:`qdrefine.refine` of a host mesh on the device, copies both ways included."""
@@ -135,6 +146,7 @@ def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
 
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
+    require_gpu()
     check_memory(mesh, sch, levels)  # the result comes back to the host
     out = refine_device(mesh.points, mesh.triangles, sch, levels, cell_tags=mesh.cell_tags,
                         edges=mesh.edges, edge_tags=mesh.edge_tags, strict=strict)
