@@ -5,13 +5,15 @@ environment must be set before ``numba.cuda`` is first imported."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshes import jittered_grid
-from qdrefine import Mesh, examples, refine, scheme_names
+from qdrefine import Mesh, examples, read, refine, scheme_names
 from qdrefine.gpu import refine_device, refine_mesh
 from qdrefine.gpu.numbering import exclusive_scan
 from qdrefine.predicates import orient_signs
@@ -87,6 +89,14 @@ def test_structured_and_unstructured_examples(scheme):
               (out.points, out.triangles, out.cell_tags, out.edges, out.edge_tags))))
 
 
+def test_a_gmsh_made_mesh():
+    """Gmsh's unstructured, near-equilateral triangles with two tagged regions and tagged
+    boundary edges (read through meshio)."""
+    mesh = read(Path(__file__).parent / "data" / "two_regions_22.msh")
+    for scheme in SCHEMES:
+        assert_identical(refine(mesh, scheme), refine_mesh(mesh, scheme))
+
+
 def test_near_ties_with_inexact_differences_go_to_the_exact_stage():
     """|OM| and |ON| nearly tie and the coordinate differences are not exact: neither the
     filter nor stage 2 proves the sign, the expansions on the device do, and the result is
@@ -126,6 +136,32 @@ def test_device_arrays_in_device_arrays_out():
         assert hasattr(a, "copy_to_host")  # still on the device
         assert np.array_equal(a.copy_to_host(), getattr(cpu, name))
     assert_identical(cpu, refine(mesh, "7t-qd", device="cuda"))
+    wide = refine_device(cuda.to_device(mesh.points),
+                         cuda.to_device(mesh.triangles.astype(np.int64)), "7t-qd", 2)
+    two = refine(mesh, "7t-qd", 2)
+    assert wide.triangles.dtype == two.triangles.dtype  # int32: the points fit
+    assert np.array_equal(wide.triangles.copy_to_host(), two.triangles)
+    same = refine_device(mesh.points, mesh.triangles, "7t-qd", 0)
+    assert np.array_equal(same.points.copy_to_host(), mesh.points)
+    assert np.array_equal(same.triangles.copy_to_host(), mesh.triangles)
+
+
+def test_too_little_device_memory_is_refused_before_any_work(monkeypatch):
+    import qdrefine.gpu.refine as gpu_refine
+    from qdrefine.memory import memory_needed
+
+    mesh = examples.square(2)
+    need = memory_needed(mesh.n_points, mesh.n_triangles, "7t-qd", 3)
+
+    class Context:
+        def get_memory_info(self):
+            return need - 1, 2 * need
+
+    monkeypatch.setattr(gpu_refine.cuda, "current_context", lambda: Context())
+    with pytest.raises(MemoryError, match="on the GPU needs about .* GiB free on the device"):
+        refine_device(mesh.points, mesh.triangles, "7t-qd", 3)
+    monkeypatch.undo()
+    assert refine_device(mesh.points, mesh.triangles, "4t-red", 1).triangles.shape[0] == 32
 
 
 @pytest.mark.parametrize("size", [1, 5000, 40000])
