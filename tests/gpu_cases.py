@@ -192,3 +192,35 @@ def test_bad_input_is_refused_with_one_line():
         with pytest.raises(ValueError, match=match) as info:
             call()
         assert "\n" not in str(info.value)
+
+
+def test_input_the_mesh_would_refuse_is_refused_on_the_device_with_its_message():
+    """Clockwise and zero-area triangles (exact orientation: a near-collinear triangle that
+    only the exact stage decides) and bad coordinates, in device arrays."""
+    from numba import cuda
+
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.5, 1.0],
+                       [1.5, 1.0]])
+    cases = [
+        ([[0, 1, 3], [0, 2, 1]], points),  # triangle 1 clockwise
+        ([[0, 1, 3], [2, 4, 3]], points),  # triangle 1: zero area
+        ([[0, 1, 2]], np.array([[0.0, 0.0], [1.0, 0.0], [0.0, np.inf]])),
+        ([[0, 1, 2]], np.array([[0.0, 0.0], [1.0, 0.0], [1e-200, 1.0]])),
+    ]
+    for tris, pts in cases:
+        tris = np.array(tris)
+        with pytest.raises(ValueError) as host:
+            Mesh(pts, tris)
+        with pytest.raises(ValueError) as device:
+            refine_device(cuda.to_device(pts), cuda.to_device(tris))
+        assert str(device.value) == str(host.value)
+    # nearly collinear: the float filter cannot tell, the exact stage can
+    thin = np.array([[0.1, 0.1], [0.7, 0.7], [0.3, 0.30000000000000004]])
+    for tris in ([[0, 1, 2]], [[0, 2, 1]]):
+        host = outcome(lambda t=tris: refine(Mesh(thin, t), "4t-red"))
+        device = outcome(lambda t=tris: refine_mesh(Mesh._trusted(thin, np.array(t)), "4t-red"))
+        if isinstance(host, str):
+            assert host == device
+        else:
+            assert_identical(host, device)
+    assert refine_device(thin, [[0, 1, 2]], "4t-red", strict=False).exact_stage == (1,)

@@ -22,9 +22,10 @@ from numba.types import float64, int64
 
 from ..predicates import SCRATCH
 from .numbering import edge_id
-from .predicates import decide_exact, decide_fast, suspect
+from .predicates import decide_exact, decide_fast, orient_filter, orient_sign, suspect
 
-__all__ = ["new_points", "emit", "decide_rows", "emit_rows", "repeat", "split_edges"]
+__all__ = ["new_points", "emit", "decide_rows", "emit_rows", "repeat", "split_edges",
+           "check_points"]
 
 MAX_LOCAL = 9  # own local points of a triangle: 3 corners + 3 edges x at most 2
 
@@ -81,10 +82,12 @@ def _write_children(t, im, jn, row, triangles, starts, first, hi, n, per_edge, f
 
 @cuda.jit
 def emit(points, triangles, starts, first, hi, per_edge, forms, factors, lut, frames, width,
-         out, hard, n_hard, n_suspect):
+         out, hard, n_hard, n_suspect, check):
     """One thread per triangle: decide and write its children into flat ``out``; list the
     triangles that need the exact stage in ``hard[: n_hard[0]]``; count the rounding
-    suspects (:func:`qdrefine.kernels.rounding_suspects`) in ``n_suspect[0]``."""
+    suspects (:func:`qdrefine.kernels.rounding_suspects`) in ``n_suspect[0]``. With
+    ``check``, a triangle the orientation filter does not prove counter-clockwise is listed
+    too (:func:`decide_rows` then decides its orientation exactly)."""
     t = cuda.grid(1)
     if t < triangles.shape[0]:
         v0 = triangles[t, 0]
@@ -95,6 +98,9 @@ def emit(points, triangles, starts, first, hi, per_edge, forms, factors, lut, fr
         x2, y2 = points[v2, 0], points[v2, 1]
         if suspect(x0, y0, x1, y1, x2, y2, float(per_edge + 1)):
             cuda.atomic.add(n_suspect, 0, 1)
+        if check and orient_filter(x0, y0, x1, y1, x2, y2) <= 0:
+            hard[cuda.atomic.add(n_hard, 0, 1)] = t
+            return
         im, jn, ko, row = decide_fast(x0, y0, x1, y1, x2, y2, forms, factors, lut)
         if row < 0:
             hard[cuda.atomic.add(n_hard, 0, 1)] = t
@@ -105,9 +111,11 @@ def emit(points, triangles, starts, first, hi, per_edge, forms, factors, lut, fr
 
 
 @cuda.jit
-def decide_rows(points, triangles, rows, forms, factors, lut, labels):
+def decide_rows(points, triangles, rows, forms, factors, lut, check, labels):
     """``labels[r] = (iM, iN, iO, row)`` of triangle ``rows[r]`` by all three stages
-    (:func:`qdrefine.gpu.predicates.decide_exact`), for the triangles :func:`emit` listed."""
+    (:func:`qdrefine.gpu.predicates.decide_exact`), for the triangles :func:`emit` listed.
+    With ``check``, a triangle whose exact orientation is not counter-clockwise gets
+    ``row = -1`` (zero area) or ``-2`` (clockwise) instead."""
     r = cuda.grid(1)
     if r < rows.shape[0]:
         buf = cuda.local.array(SCRATCH, dtype=float64)
@@ -116,9 +124,15 @@ def decide_rows(points, triangles, rows, forms, factors, lut, labels):
         v0 = triangles[t, 0]
         v1 = triangles[t, 1]
         v2 = triangles[t, 2]
-        im, jn, ko, row = decide_exact(points[v0, 0], points[v0, 1], points[v1, 0],
-                                       points[v1, 1], points[v2, 0], points[v2, 1], forms,
-                                       factors, lut, buf, cc)
+        x0, y0 = points[v0, 0], points[v0, 1]
+        x1, y1 = points[v1, 0], points[v1, 1]
+        x2, y2 = points[v2, 0], points[v2, 1]
+        if check:
+            s = orient_sign(x0, y0, x1, y1, x2, y2, buf)
+            if s <= 0:
+                labels[r, 3] = -1 if s == 0 else -2
+                return
+        im, jn, ko, row = decide_exact(x0, y0, x1, y1, x2, y2, forms, factors, lut, buf, cc)
         labels[r, 0] = im
         labels[r, 1] = jn
         labels[r, 2] = ko
@@ -164,3 +178,16 @@ def split_edges(edges, n, starts, first, hi, per_edge, out):
             out[r * (per_edge + 1) + j, 0] = prev
             out[r * (per_edge + 1) + j, 1] = nxt
             prev = nxt
+
+
+@cuda.jit
+def check_points(points, lo, hi, first_bad):
+    """``first_bad[0]``: the least row of ``points`` with a non-finite coordinate or a
+    nonzero one outside ``[lo, hi]`` in magnitude (:func:`qdrefine.predicates.check_coordinates`);
+    unchanged when there is none."""
+    i = cuda.grid(1)
+    if i < points.shape[0]:
+        for k in range(2):
+            x = abs(points[i, k])
+            if not (x <= hi) or (x != 0.0 and x < lo):  # NaN fails x <= hi
+                cuda.atomic.min(first_bad, 0, i)

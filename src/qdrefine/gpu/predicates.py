@@ -26,10 +26,21 @@ from numba import cuda, njit
 from numba.core import config
 
 from ..kernels import _APEX, _STRICT
-from ..predicates import _EXPANSION, _FORM_I, _FORM_J, _LENGTH_C, _LENGTH_I, FILTER, UNDECIDED
+from ..predicates import (
+    _EXPANSION,
+    _FORM_I,
+    _FORM_J,
+    _LENGTH_C,
+    _LENGTH_I,
+    _ORIENT_C,
+    _ORIENT_I,
+    _ORIENT_J,
+    FILTER,
+    UNDECIDED,
+)
 from ..predicates import _fma as _llvm_fma
 
-__all__ = ["UNDECIDED", "decide_exact", "decide_fast", "suspect"]
+__all__ = ["UNDECIDED", "decide_exact", "decide_fast", "orient_filter", "orient_sign", "suspect"]
 
 SIMULATOR = bool(config.ENABLE_CUDASIM)
 
@@ -431,3 +442,25 @@ def decide_exact(x0, y0, x1, y1, x2, y2, forms, factors, lut, buf, cc):
         code += (s + 1) * power
         power *= 3
     return im, jn, ko, lut[code]
+
+
+@cuda.jit(device=True, inline=True)
+def orient_filter(ax, ay, bx, by, cx, cy):
+    """Stage 1 of :func:`qdrefine.predicates.orient_sign`: +1 or -1 when proved, else 0."""
+    p = (bx - ax) * (cy - ay)
+    q = (by - ay) * (cx - ax)
+    bound = FILTER * (abs(p) + abs(q))
+    return int(p - q > bound) - int(p - q < -bound)
+
+
+@cuda.jit(device=True)
+def orient_sign(ax, ay, bx, by, cx, cy, buf):
+    """:func:`qdrefine.predicates.orient_sign`: the exact sign of ``(b-a) x (c-a)``."""
+    s = orient_filter(ax, ay, bx, by, cx, cy)
+    if s != 0:
+        return s
+    buf[0], buf[1] = _two_diff(bx, ax)
+    buf[2], buf[3] = _two_diff(by, ay)
+    buf[4], buf[5] = _two_diff(cx, ax)
+    buf[6], buf[7] = _two_diff(cy, ay)
+    return _exact_sign(_ORIENT_I, _ORIENT_J, _ORIENT_C, 2, buf)

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, memory_needed
 from ..mesh import Mesh, index_dtype
-from ..predicates import factor_forms
+from ..predicates import COORDINATE_RANGE, check_coordinates, factor_forms
 from ..refine import as_count, check_rounding
 from ..schemes import Scheme, get_scheme
 from . import kernels as k
@@ -65,8 +65,10 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
     ----------
     points : (N, 2) float64
     triangles : (M, 3) int32 or int64
-        Counter-clockwise, as in a :class:`qdrefine.Mesh` (only the shapes, dtypes and the
-        index range are checked here: validate with ``Mesh`` once, on the host).
+        Counter-clockwise, as in a :class:`qdrefine.Mesh`. Checked on the device: shapes,
+        dtypes, the index range, the coordinates (finite, 0 or in
+        :data:`qdrefine.predicates.COORDINATE_RANGE`) and the orientation (exact); not
+        checked: conformity, duplicate points, folds (validate with ``Mesh`` on the host).
     cell_tags : (M,) int64, optional
     edges : (K, 2) int and edge_tags : (K,) int64, optional
         Tagged edges, each an edge of some triangle.
@@ -113,12 +115,14 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
                              f"{etags.shape[0]}")
         _check_indices(tagged, n, "edges")
     check_device_memory(n, m, sch, levels, tags is not None)
+    if levels:
+        _check_points(pts)
     tables = _Tables(sch)
     exact = []
     for level in range(1, levels + 1):
         try:
             pts, tri, tags, tagged, etags, n_hard = _level(pts, tri, tags, tagged, etags,
-                                                           tables, strict)
+                                                           tables, strict, level == 1)
         except ValueError as exc:
             raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
         exact.append(n_hard)
@@ -189,8 +193,9 @@ class _Tables:
             np.ascontiguousarray(_frame_tables(sch.tables, self.per_edge).reshape(-1)))
 
 
-def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool):
-    """One uniform level on device arrays (:func:`qdrefine.refine.refine_arrays`)."""
+def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: bool):
+    """One uniform level on device arrays (:func:`qdrefine.refine.refine_arrays`); with
+    ``check`` (the input level), a triangle that is not counter-clockwise is refused."""
     n, m = pts.shape[0], tri.shape[0]
     per = tab.per_edge
     ed = sort_edges(tri, n)
@@ -204,13 +209,15 @@ def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool):
     if m:
         k.emit[blocks(m), THREADS](pts, tri, ed.starts, ed.first, ed.hi, per, tab.forms,
                                    tab.factors, tab.lut, tab.frames, tab.width, flat, hard,
-                                   counters[0:1], counters[1:2])
+                                   counters[0:1], counters[1:2], int(check))
     n_hard, n_suspect = (int(c) for c in counters.copy_to_host())
     if n_hard:
         rows = hard[:n_hard]
         labels = cuda.device_array((n_hard, 4), dtype=np.int64)
         k.decide_rows[blocks(n_hard), THREADS](pts, tri, rows, tab.forms, tab.factors,
-                                               tab.lut, labels)
+                                               tab.lut, int(check), labels)
+        if check:
+            _refuse_misoriented(tri, rows.copy_to_host(), labels.copy_to_host())
         k.emit_rows[blocks(n_hard), THREADS](n, tri, ed.starts, ed.first, ed.hi, per,
                                              tab.frames, tab.width, rows, labels, flat)
     if strict and n_suspect:
@@ -274,6 +281,37 @@ def _dlpack_on_cuda(a) -> bool:
 
 def _host(a) -> NDArray:
     return a.copy_to_host() if hasattr(a, "copy_to_host") else np.asarray(a.get())
+
+
+def _refuse_misoriented(tri, rows: NDArray, labels: NDArray) -> None:
+    """``ValueError`` naming the least triangle :func:`kernels.decide_rows` found zero-area
+    or clockwise (the wording of :class:`qdrefine.Mesh`)."""
+    bad = labels[:, 3] < 0
+    if not bad.any():
+        return
+    t = int(rows[bad].min())
+    corners = tuple(int(v) for v in tri[t:t + 1].copy_to_host()[0])
+    if labels[rows == t][0, 3] == -1:
+        raise ValueError(f"triangle {t} {corners} has zero area")
+    raise ValueError(f"triangle {t} {corners} is clockwise; triangles must be "
+                     "counter-clockwise with positive area")
+
+
+def _check_points(points) -> None:
+    """:func:`qdrefine.predicates.check_coordinates` on the device: ``ValueError`` naming
+    the first bad point."""
+    n = points.shape[0]
+    if n == 0:
+        return
+    first_bad = cuda.to_device(np.array([n], dtype=np.int64))
+    lo, hi = COORDINATE_RANGE
+    k.check_points[blocks(n), THREADS](points, lo, hi, first_bad)
+    i = int(first_bad.copy_to_host()[0])
+    if i < n:
+        try:
+            check_coordinates(points[i:i + 1].copy_to_host())
+        except ValueError as exc:
+            raise ValueError(str(exc).replace("point 0 ", f"point {i} ", 1)) from None
 
 
 def _check_indices(index, n: int, name: str) -> None:
