@@ -50,7 +50,7 @@ def same_outcome(cpu, gpu) -> None:
         assert_identical(cpu, gpu)
 
 
-@settings(max_examples=12, deadline=None)
+@settings(max_examples=10, deadline=None)
 @given(n=st.integers(1, 4), seed=st.integers(0, 10**6), shear=st.sampled_from([0, 0.5, 40.0]),
        shuffle=st.booleans(), scheme=st.sampled_from(SCHEMES), levels=st.integers(1, 2))
 def test_random_tagged_meshes(n, seed, shear, shuffle, scheme, levels):
@@ -61,7 +61,7 @@ def test_random_tagged_meshes(n, seed, shear, shuffle, scheme, levels):
                  outcome(lambda: refine_mesh(mesh, scheme, levels)))
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=25, deadline=None)
 @given(tri=triangle_strategy(), scheme=st.sampled_from(SCHEMES), levels=st.integers(1, 2),
        strict=st.booleans())
 def test_single_triangles_with_ties_and_near_ties(tri, scheme, levels, strict):
