@@ -13,6 +13,8 @@ and, with ``--json FILE``, as JSON:
   bytes / time / bandwidth);
 * GPU, host to host: ``refine(mesh, device="cuda")``, copies both ways included;
 * CPU, all cores: ``refine(mesh)`` (numba's default thread count), and the speed-up;
+* the GPU's time per pass (edge numbering, new points, decision and emission), the device
+  synchronized between passes;
 * whether the GPU output equals the CPU output bit for bit (points, triangles), and how many
   triangles needed the exact stage on the device;
 * the load average before and after (other processes make times noisy).
@@ -37,6 +39,7 @@ from numba import cuda
 
 from qdrefine import Mesh, examples, get_scheme, refine
 from qdrefine.gpu import refine_device
+from qdrefine.gpu.refine import pass_times
 from qdrefine.mesh import index_dtype
 
 
@@ -123,6 +126,8 @@ def run_size(millions: float, scheme: str, levels: int, shuffled: bool, repeat: 
     refine_device(d_points, d_triangles, sch, levels)  # compile the kernels
     t_dev, dev = timed(lambda: refine_device(d_points, d_triangles, sch, levels), repeat, True)
     row["gpu_device_s"] = t_dev
+    row["gpu_passes_s"] = min((pass_times(d_points, d_triangles, sch) for _ in range(repeat)),
+                              key=lambda p: sum(p.values()))
     row["exact_stage"] = list(dev.exact_stage)
     row["identical"] = bool(np.array_equal(dev.points.copy_to_host(), cpu.points)
                             and np.array_equal(dev.triangles.copy_to_host(), cpu.triangles))
@@ -166,6 +171,8 @@ def main() -> None:
               f"{row['gpu_device_triangles_per_s'] / 1e9:10.3f} "
               f"{row['gpu_device_fraction_of_write_bandwidth']:11.1%} "
               f"{row['speedup_device_vs_cpu']:6.1f} {str(row['identical']):>5}")
+        print("         GPU passes (s): " + ", ".join(f"{name} {t:.4f}" for name, t in
+                                                   row["gpu_passes_s"].items()))
     result["load_after"] = os.getloadavg()
     if args.json:
         with open(args.json, "w") as fh:

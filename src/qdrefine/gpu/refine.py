@@ -29,7 +29,7 @@ from ..schemes import Scheme, get_scheme
 from . import kernels as k
 from .numbering import THREADS, blocks, sort_edges
 
-__all__ = ["DeviceMesh", "refine_device", "refine_mesh", "require_gpu"]
+__all__ = ["DeviceMesh", "pass_times", "refine_device", "refine_mesh", "require_gpu"]
 
 
 @dataclass(frozen=True)
@@ -193,15 +193,21 @@ class _Tables:
             np.ascontiguousarray(_frame_tables(sch.tables, self.per_edge).reshape(-1)))
 
 
-def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: bool):
+def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: bool,
+           clock=None):
     """One uniform level on device arrays (:func:`qdrefine.refine.refine_arrays`); with
-    ``check`` (the input level), a triangle that is not counter-clockwise is refused."""
+    ``check`` (the input level), a triangle that is not counter-clockwise is refused.
+    ``clock(name)``, if given, is called after each pass (:func:`pass_times`)."""
     n, m = pts.shape[0], tri.shape[0]
     per = tab.per_edge
     ed = sort_edges(tri, n)
+    if clock:
+        clock("edge numbering")
     n_new = n + per * ed.n_edges
     new_pts = cuda.device_array((n_new, 2), dtype=np.float64)
     k.new_points[blocks(n), THREADS](pts, ed.starts, ed.first, ed.hi, per, new_pts)
+    if clock:
+        clock("new points")
     children = cuda.device_array((m * tab.n_children, 3), dtype=index_dtype(n_new))
     flat = children.reshape(m * tab.width)
     hard = cuda.device_array(max(m, 1), dtype=np.int64)
@@ -220,8 +226,12 @@ def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: boo
             _refuse_misoriented(tri, rows.copy_to_host(), labels.copy_to_host())
         k.emit_rows[blocks(n_hard), THREADS](n, tri, ed.starts, ed.first, ed.hi, per,
                                              tab.frames, tab.width, rows, labels, flat)
+    if clock:
+        clock("decision and emission")
     if strict and n_suspect:
         check_rounding(_host(pts), _host(tri), _host(new_pts), _host(children), per)
+        if clock:
+            clock("rounding check on the host")
     new_tags = new_edges = new_etags = None
     if tags is not None:
         new_tags = cuda.device_array(m * tab.n_children, dtype=np.int64)
@@ -281,6 +291,28 @@ def _dlpack_on_cuda(a) -> bool:
 
 def _host(a) -> NDArray:
     return a.copy_to_host() if hasattr(a, "copy_to_host") else np.asarray(a.get())
+
+
+def pass_times(points, triangles, scheme: str | Scheme = "7t-qd", strict: bool = True
+               ) -> dict[str, float]:
+    """Seconds of each pass of one level of :func:`refine_device` on device arrays (the
+    device synchronized at each pass boundary; for benchmarks)."""
+    import time
+
+    pts = _device(points, "points", (np.float64,), 2)
+    tri = _device(triangles, "triangles", (np.int32, np.int64), 3)
+    times: dict[str, float] = {}
+    cuda.synchronize()
+    last = [time.perf_counter()]
+
+    def clock(name: str) -> None:
+        cuda.synchronize()
+        now = time.perf_counter()
+        times[name] = times.get(name, 0.0) + now - last[0]
+        last[0] = now
+
+    _level(pts, tri, None, None, None, _Tables(get_scheme(scheme)), strict, False, clock)
+    return times
 
 
 def _refuse_misoriented(tri, rows: NDArray, labels: NDArray) -> None:
