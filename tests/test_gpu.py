@@ -63,3 +63,14 @@ def test_without_the_simulator_a_missing_gpu_is_one_clear_error():
     else:
         assert run.stdout.startswith("RuntimeError: device='cuda': no CUDA GPU is available")
         assert run.stdout.count("\n") == 1
+
+
+def test_importing_qdrefine_does_not_import_the_cuda_target():
+    """The GPU extra stays optional: ``import qdrefine`` and CPU refinement never load
+    ``numba.cuda``."""
+    code = ("import sys\nfrom qdrefine import examples, refine\nrefine(examples.square(1))\n"
+            "print(sorted(m for m in sys.modules if m.startswith(('numba.cuda', 'qdrefine.gpu'))))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.strip() == "[]"
