@@ -58,7 +58,7 @@ def main() -> int:
         k.emit_rows: (i64, a(i32, 2), a(i64), a(i64), a(i32), i64, a(u8), i64, a(i64),
                       a(i64, 2), a(i32)),
         k.repeat: (a(i64), i64, a(i64)),
-        k.split_edges: (a(i32, 2), i64, a(i64), a(i64), a(i32), i64, a(i32, 2)),
+        k.split_edges: (a(i32, 2), i64, a(i64), a(i64), a(i32), i64, a(i32, 2), a(i64)),
         r._index_range: (a(i32, 2), a(i64)),
     }
     failed = 0

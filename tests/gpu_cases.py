@@ -212,8 +212,14 @@ def test_input_the_mesh_would_refuse_is_refused_on_the_device_with_its_message()
         with pytest.raises(ValueError) as host:
             Mesh(pts, tris)
         with pytest.raises(ValueError) as device:
-            refine_device(cuda.to_device(pts), cuda.to_device(tris))
+            refine_device(cuda.to_device(pts), cuda.to_device(tris), levels=2)
         assert str(device.value) == str(host.value)
+    edges, edge_tags = np.array([[0, 1], [0, 2], [1, 3]]), np.array([1, 2, 3])
+    with pytest.raises(ValueError) as host:
+        Mesh(points, [[0, 1, 3]], edges=edges, edge_tags=edge_tags)
+    with pytest.raises(ValueError) as device:
+        refine_device(points, [[0, 1, 3]], edges=edges, edge_tags=edge_tags, levels=2)
+    assert str(device.value) == str(host.value)
     # nearly collinear: the float filter cannot tell, the exact stage can
     thin = np.array([[0.1, 0.1], [0.7, 0.7], [0.3, 0.30000000000000004]])
     for tris in ([[0, 1, 2]], [[0, 2, 1]]):

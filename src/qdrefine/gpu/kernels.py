@@ -159,14 +159,19 @@ def repeat(values, times, out):
 
 
 @cuda.jit
-def split_edges(edges, n, starts, first, hi, per_edge, out):
+def split_edges(edges, n, starts, first, hi, per_edge, out, first_bad):
     """Each tagged edge ``(a, b)`` into ``per_edge + 1`` rows ``a -> ... -> b`` of ``out``
-    (:func:`qdrefine.refine.split_tagged_edges` with every edge split)."""
+    (:func:`qdrefine.refine.split_tagged_edges` with every edge split); ``first_bad[0]``:
+    the least row that is not an edge of any triangle (unchanged if none)."""
     r = cuda.grid(1)
     if r < edges.shape[0]:
         a = edges[r, 0]
         b = edges[r, 1]
-        base = n + edge_id(a, b, starts, first, hi) * per_edge
+        g = edge_id(a, b, starts, first, hi)
+        if g < 0:
+            cuda.atomic.min(first_bad, 0, r)
+            return
+        base = n + g * per_edge
         prev = a
         for j in range(per_edge + 1):
             if j == per_edge:

@@ -32,6 +32,10 @@ from .numbering import THREADS, blocks, sort_edges
 __all__ = ["DeviceMesh", "pass_times", "refine_device", "refine_mesh", "require_gpu"]
 
 
+class InputError(ValueError):
+    """Bad input found while refining (reported without the ``level N:`` prefix)."""
+
+
 @dataclass(frozen=True)
 class DeviceMesh:
     """A refined mesh on the device (arrays as described in :func:`qdrefine.refine`).
@@ -123,6 +127,8 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
         try:
             pts, tri, tags, tagged, etags, n_hard = _level(pts, tri, tags, tagged, etags,
                                                            tables, strict, level == 1)
+        except InputError as exc:
+            raise ValueError(str(exc)) from None
         except ValueError as exc:
             raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
         exact.append(n_hard)
@@ -241,8 +247,13 @@ def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: boo
         new_edges = cuda.device_array((n_tagged * (per + 1), 2), dtype=children.dtype)
         new_etags = cuda.device_array(n_tagged * (per + 1), dtype=np.int64)
         if n_tagged:
+            first_bad = cuda.to_device(np.array([n_tagged], dtype=np.int64))
             k.split_edges[blocks(n_tagged), THREADS](tagged, n, ed.starts, ed.first, ed.hi,
-                                                     per, new_edges)
+                                                     per, new_edges, first_bad)
+            r = int(first_bad.copy_to_host()[0])
+            if r < n_tagged:
+                pair = tuple(int(v) for v in tagged[r:r + 1].copy_to_host()[0])
+                raise InputError(f"edge {r} {pair} is not an edge of any triangle")
             k.repeat[blocks(new_etags.shape[0]), THREADS](etags, per + 1, new_etags)
     return new_pts, children, new_tags, new_edges, new_etags, n_hard
 
@@ -324,8 +335,8 @@ def _refuse_misoriented(tri, rows: NDArray, labels: NDArray) -> None:
     t = int(rows[bad].min())
     corners = tuple(int(v) for v in tri[t:t + 1].copy_to_host()[0])
     if labels[rows == t][0, 3] == -1:
-        raise ValueError(f"triangle {t} {corners} has zero area")
-    raise ValueError(f"triangle {t} {corners} is clockwise; triangles must be "
+        raise InputError(f"triangle {t} {corners} has zero area")
+    raise InputError(f"triangle {t} {corners} is clockwise; triangles must be "
                      "counter-clockwise with positive area")
 
 
