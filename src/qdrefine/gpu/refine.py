@@ -75,7 +75,7 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
         checked: conformity, duplicate points, folds (validate with ``Mesh`` on the host).
     cell_tags : (M,) int64, optional
     edges : (K, 2) int and edge_tags : (K,) int64, optional
-        Tagged edges, each an edge of some triangle.
+        Tagged edges, each an edge of some triangle (checked).
     scheme, levels, strict
         As in :func:`qdrefine.refine`.
 
