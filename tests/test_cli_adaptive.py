@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import qdrefine
-from qdrefine.adaptive import KEEP, Families, refine_step
+from qdrefine.adaptive import refine_marked
 from qdrefine.marking import mark_box, mark_tag
-from qdrefine.quality import areas, min_angles
+from qdrefine.quality import areas
 from qdrefine.topology import conformity
 
 DATA = Path(__file__).parent / "data"
@@ -26,16 +26,14 @@ def cli(*args):
 
 
 def api(mesh, mark, cycles=1, scheme="7t-qd"):
-    """What the command should do: ``mark(mesh, parents)`` then :func:`refine_step`, with
-    the floor fixed on the input; returns the mesh and the number of marked triangles."""
-    floor = KEEP * min_angles(mesh).min()
-    fam = Families.empty(mesh.n_triangles, qdrefine.get_scheme(scheme).stencil.per_edge)
+    """What the command should do: ``mark(mesh, parents)`` then :func:`refine_marked`
+    (the mesh carries its history); returns the mesh and the number of marked triangles."""
     parents = np.arange(mesh.n_triangles)
     total = 0
     for _ in range(cycles):
         marked = mark(mesh, parents)
         total += int(marked.sum())
-        mesh, step, fam = refine_step(mesh, marked, scheme, floor, fam)
+        mesh, step = refine_marked(mesh, marked, scheme)
         parents = parents[step]
     return mesh, total
 

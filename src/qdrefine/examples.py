@@ -1,12 +1,41 @@
-"""Small built-in meshes for demos, docs and tests (made by hand, no mesher needed)."""
+"""Small built-in meshes for demos, docs and tests: made by hand (no mesher needed), and a
+few unstructured meshes made by Gmsh (shipped as files)."""
 
 from __future__ import annotations
 
+from importlib.resources import as_file, files
+
 import numpy as np
 
+from .io import read
 from .mesh import Mesh
 
-__all__ = ["plate_with_hole", "square", "jittered_square", "OUTER", "HOLE", "LEFT", "RIGHT"]
+__all__ = ["plate_with_hole", "square", "jittered_square", "gmsh_mesh", "GMSH_MESHES",
+           "OUTER", "HOLE", "LEFT", "RIGHT"]
+
+#: The Gmsh-made meshes of :func:`gmsh_mesh`: name, what it is.
+GMSH_MESHES = {
+    "l_shape": "the L-shape [-1, 1]^2 minus (0, 1]^2, 126 near-equilateral triangles, "
+               "smallest angle 42.1 deg",
+    "plate_with_hole": "a square plate with a circular hole, finer at the hole, 560 "
+                       "triangles, smallest angle 34.4 deg, physical names",
+    "step": "a backward-facing step channel, two regions, finer at the step corner, 888 "
+            "triangles, smallest angle 38.7 deg",
+    "graded": "a square graded by a size field (MeshAdapt), 314 triangles over a factor of "
+              "thirty in size, smallest angle 27.9 deg",
+}
+
+
+def gmsh_mesh(name: str) -> Mesh:
+    """One of the unstructured meshes made by Gmsh 4 (Frontal-Delaunay or MeshAdapt), as
+    users bring them: near-equilateral triangles, size grading, tagged boundaries and
+    regions. ``benchmarks/make_gmsh_meshes.py`` records how they were made; the smallest
+    angles in :data:`GMSH_MESHES` are those of the files (tested)."""
+    if name not in GMSH_MESHES:
+        raise ValueError(f"unknown Gmsh example {name!r}; choose one of: "
+                         f"{', '.join(GMSH_MESHES)}")
+    with as_file(files("qdrefine") / "data" / "gmsh" / f"{name}.msh") as path:
+        return read(path)
 
 OUTER, HOLE = 1, 2  # edge tags
 LEFT, RIGHT = 1, 2  # cell tags

@@ -155,6 +155,12 @@ class Mesh:
             object.__setattr__(mesh, name, _readonly(value))
         return mesh
 
+    def __reduce__(self) -> tuple:
+        """Pickle support (the read-only mappings are stored as plain dicts)."""
+        return (Mesh._trusted, (self.points, self.triangles, self.cell_tags, self.edges,
+                                self.edge_tags, dict(self.point_data), dict(self.cell_data),
+                                dict(self.physical_names), self.transitions))
+
     @property
     def n_points(self) -> int:
         return int(self.points.shape[0])

@@ -44,6 +44,8 @@ __all__ = [
     "sqdist_form",
     "incircle_form",
     "integer_form",
+    "CENTROID",
+    "with_centroid",
 ]
 
 
@@ -111,6 +113,18 @@ FOUR = Stencil(
     ),
     per_edge=1,
 )
+
+#: Name of the parent's centroid, the one interior point of transition patterns.
+CENTROID = "X"
+
+
+def with_centroid(stencil: Stencil) -> Stencil:
+    """``stencil`` with the centroid ``(M + N + O) / 3`` appended as point :data:`CENTROID`
+    (local index ``3 + 3k``): the point set of the transition patterns of local refinement."""
+    third = Fraction(1, 3)
+    return Stencil(stencil.names + (CENTROID,), stencil.weights + ((third, third, third),),
+                   stencil.per_edge)
+
 
 #: The four corner triangles every seven-triangle scheme shares (paper: MPD, ADP, BCQ, CNQ).
 FIXED_7T: tuple[str, ...] = ("MDP", "PDA", "CQB", "CNQ")

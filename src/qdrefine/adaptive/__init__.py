@@ -1,14 +1,17 @@
-"""Adaptive conforming local refinement: marked triangles, a longest-edge closure and
-transition patterns; across cycles, transition families that are coarsened before they are
-refined. The rules, why the loops end, and the quality study: ``docs/adaptive.md``.
+"""Adaptive conforming local refinement (red-green): marked triangles get the scheme's
+partition, a longest-edge closure with transition patterns keeps the mesh conforming, and
+the output mesh carries its transitions (``Mesh.transitions``) so that the next call
+coarsens them before refining them. The rules, the quality bound and the studies:
+``docs/adaptive.md``.
 
-Modules: :mod:`.api` (entry points), :mod:`.step` (one step), :mod:`.working` (the working
-mesh), :mod:`.rounds` (closure, conflicts, quality guard), :mod:`.output` (children,
-families, tagged edges), :mod:`.overlap` (marked transition children), :mod:`.families`,
+Modules: :mod:`.api` (entry points), :mod:`.history` (``Mesh.transitions`` as families and
+back), :mod:`.step` (one step), :mod:`.working` (the working mesh), :mod:`.rounds`
+(closure, conflicts, transition upgrades), :mod:`.output` (children, families, tagged edges,
+point data), :mod:`.overlap` (marked transition children), :mod:`.families`,
 :mod:`.patterns`, :mod:`.longest_edge`, :mod:`.labels`, :mod:`.edgekeys`.
 """
 
-from .api import KEEP, as_mask, refine_cycles, refine_marked, refine_step
+from .api import as_mask, refine_cycles, refine_marked
 from .families import Families
 from .labels import canonical_edges, canonical_labels
 from .longest_edge import closure
@@ -16,10 +19,8 @@ from .patterns import TRANSITIONS
 
 __all__ = [
     "refine_marked",
-    "refine_step",
     "refine_cycles",
     "Families",
-    "KEEP",
     "closure",
     "canonical_labels",
     "canonical_edges",

@@ -9,6 +9,7 @@ from numpy.typing import NDArray
 
 from .edgekeys import edge_keys, oriented
 from .labels import split_codes
+from .patterns import pattern_stencil
 
 
 @dataclass(frozen=True, eq=False)
@@ -25,9 +26,12 @@ class Families:
         The members of a family are consecutive rows (as ``refine_step`` emits them).
     rows : (F, 3) int64
         Each family's parent triangle: its vertex row, counter-clockwise.
-    stencil : (F, 3 + 3k) int64
-        The parent's canonical vertices ``M, N, O``, then the ``k`` points of ``MN``,
-        ``NO`` and ``OM`` (listed from ``M``, ``N``, ``O``), ``-1`` on unsplit edges.
+    stencil : (F, S) int64
+        The parent's points in :func:`~qdrefine.adaptive.patterns.pattern_stencil` order:
+        canonical vertices ``M, N, O``, the ``k`` points of ``MN``, ``NO`` and ``OM``
+        (listed from ``M``, ``N``, ``O``), ``-1`` on unsplit edges; for seven-triangle
+        schemes (``S = 10``) then the centroid ``X``, ``-1`` where the pattern does not
+        use it.
     """
 
     member: NDArray[np.int64]
@@ -41,8 +45,8 @@ class Families:
         f = rows.shape[0]
         if member.ndim != 1:
             raise ValueError(f"families: member must be one-dimensional, got {member.shape}")
-        if stencil.shape not in ((f, 6), (f, 9)):
-            raise ValueError(f"families: stencil must have shape ({f}, 6) or ({f}, 9), got "
+        if stencil.shape not in ((f, 6), (f, 10)):
+            raise ValueError(f"families: stencil must have shape ({f}, 6) or ({f}, 10), got "
                              f"{stencil.shape}")
         if member.size and (member.min() < -1 or member.max() >= f):
             raise ValueError(f"families: member ids must be in -1..{f - 1}")
@@ -61,12 +65,20 @@ class Families:
     @classmethod
     def empty(cls, n_triangles: int, per_edge: int) -> Families:
         """No transition children among ``n_triangles``."""
+        width = len(pattern_stencil(per_edge).names)
         return cls(np.full(n_triangles, -1, dtype=np.int64), np.empty((0, 3), np.int64),
-                   np.empty((0, 3 + 3 * per_edge), np.int64))
+                   np.empty((0, width), np.int64))
 
     @property
     def per_edge(self) -> int:
-        return (self.stencil.shape[1] - 3) // 3
+        return 1 if self.stencil.shape[1] == 6 else 2
+
+    def centroids(self) -> NDArray[np.int64]:
+        """The centroid points the families' patterns use ``(C,)``."""
+        if self.per_edge != 2:
+            return np.empty(0, dtype=np.int64)
+        x = self.stencil[:, -1]
+        return x[x >= 0]
 
     @property
     def n_families(self) -> int:

@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import NDArray
 
 
 def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
-            presplit: NDArray[np.bool_] | None = None) -> tuple[NDArray[np.bool_], int]:
-    """Split edges: all edges of marked triangles, closed under the longest-edge rule.
+            presplit: NDArray[np.bool_] | None = None,
+            upgrade: Callable[[NDArray[np.int64], NDArray[np.int64]], NDArray[np.bool_]]
+            | None = None) -> tuple[NDArray[np.bool_], int]:
+    """Split edges: all edges of marked triangles, closed under the longest-edge rule
+    (and the upgrade rule, if given).
 
     Parameters
     ----------
@@ -19,6 +24,9 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
     n_edges : int
     presplit : (E,) bool, optional
         Edges that are split already (their points exist); they seed the closure too.
+    upgrade : callable, optional
+        ``upgrade(triangles, codes)`` says which of these triangles, whose split code
+        (bits ``MN=1, NO=2, OM=4``) has ``MN`` but not ``NO``, get ``NO`` split as well.
 
     Returns
     -------
@@ -39,6 +47,13 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
     while active.size:
         rounds += 1
         new = longest[active]
+        if upgrade is not None:
+            s = split[cedges[active]]
+            code = s @ np.array([1, 2, 4]) | 1  # MN is split by this round anyway
+            cand = (code & 2) == 0
+            if cand.any():
+                up = active[cand][upgrade(active[cand], code[cand])]
+                new = np.concatenate([new, cedges[up, 1]])
         new = np.unique(new[~split[new]])
         if new.size == 0:
             break

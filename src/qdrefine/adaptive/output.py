@@ -7,10 +7,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..mesh import Mesh, index_dtype
-from .edgekeys import edge_keys, lookup, oriented, register
+from .edgekeys import KEY, edge_keys, lookup, oriented, register
 from .families import Families
 from .labels import FULL
-from .patterns import PARTIAL, TRANSITIONS, pattern, stencil_ids
+from .patterns import (
+    PARTIAL,
+    canonical_corners,
+    choose,
+    pattern,
+    stencil_coordinates,
+    stencil_ids,
+    tables,
+    uses_centroid,
+)
 from .rounds import Closure, new_points, unchanged
 from .working import StepInput, Tree, emit_full
 
@@ -19,15 +28,24 @@ def emit_step(inp: StepInput, tree: Tree, cl: Closure
               ) -> tuple[Mesh, NDArray[np.int64], Families, NDArray[np.bool_],
                          NDArray[np.bool_]]:
     """Children of every working triangle, in input order; unchanged families are copied.
-    Returns ``(mesh, parents, families, inside, again)`` (see ``step.step``)."""
+    Returns ``(mesh, parents, families, inside, again, (keys, pts))`` (see ``step.step``);
+    the mesh has no tagged edges (:func:`split_tagged` cuts them with the split edges
+    ``keys (R,)``, ``pts (R, k)``)."""
     k, mesh = inp.k, inp.mesh
     points, ep = new_points(tree, cl, k)
     code = cl.codes()
     keep = unchanged(inp, tree, cl, code)
     nk = np.ones(code.shape[0], dtype=np.int64)
     nk[code == FULL] = inp.sch.n_children
+    chosen = []  # (working triangles, code, candidate, stencil coordinates)
     for c in PARTIAL:
-        nk[code == c] = len(TRANSITIONS[k][c][0])
+        sel = np.flatnonzero((code == c) & ~keep)
+        if sel.size:
+            coords = stencil_coordinates(canonical_corners(points, cl.rows[sel],
+                                                           cl.labels[sel]), k)
+            choice = choose(coords, k, c)[0]
+            nk[sel] = tables(k, c)[2][choice]
+            chosen.append((sel, c, choice, coords))
     kept = np.flatnonzero(keep)
     kept_fam = tree.fam[cl.leaves[kept]]
     nk[kept] = inp.counts[kept_fam]
@@ -42,13 +60,22 @@ def emit_step(inp: StepInput, tree: Tree, cl: Closure
         kids = emit_full(points, cl.rows[full], ep[cl.tri_edges[full]], inp.sch)
         tris[blocks(start[full], nk[full])] = kids.reshape(-1, 3)
     new_fam = []  # (working triangles, stencils)
-    for c in PARTIAL:
-        sel = np.flatnonzero((code == c) & ~keep)
-        if sel.size:
-            ids = stencil_ids(cl.rows[sel], cl.labels[sel], cl.ce[sel], ep, k)
-            tris[blocks(start[sel], nk[sel])] = pattern(points, ids, cl.labels[sel], k,
-                                                        c).reshape(-1, 3)
-            new_fam.append((sel, ids))
+    centroids = [points]
+    centroid_of = []  # canonical corners (C, 3) of each new centroid, in id order
+    n_points = points.shape[0]
+    for sel, c, choice, coords in chosen:
+        ids = stencil_ids(cl.rows[sel], cl.labels[sel], cl.ce[sel], ep, k)
+        if k == 2:  # the centroid, a new point where the chosen pattern uses it
+            used = uses_centroid(k, c, choice)
+            x = np.full((sel.size, 1), -1, dtype=np.int64)
+            x[used, 0] = n_points + np.arange(int(used.sum()))
+            n_points += int(used.sum())
+            centroids.append(coords[used, -1])
+            centroid_of.append(ids[used, :3])
+            ids = np.concatenate([ids, x], axis=1)
+        tris[blocks(start[sel], nk[sel])] = pattern(ids, cl.labels[sel], k, c, choice)[0]
+        new_fam.append((sel, ids))
+    points = np.concatenate(centroids) if len(centroids) > 1 else points
     rows = blocks(start[kept], nk[kept])
     olds = blocks(inp.first[kept_fam], nk[kept])
     tris[rows] = mesh.triangles[olds]
@@ -57,16 +84,61 @@ def emit_step(inp: StepInput, tree: Tree, cl: Closure
 
     dtype = index_dtype(points.shape[0])
     cell_tags = None if mesh.cell_tags is None else mesh.cell_tags[parents]
-    edges, edge_tags = None, None
-    if mesh.edges is not None:
-        new = cl.split & ~cl.pre
-        keys, pts = register(tree.reg_keys, tree.reg_pts, cl.keys[new], ep[new])
-        edges, edge_tags = _split_tagged(mesh.edges, mesh.edge_tags, keys, pts)
-        edges = edges.astype(dtype)
-    out = Mesh._trusted(points, tris.astype(dtype), cell_tags, edges, edge_tags)
+    new = cl.split & ~cl.pre
+    keys, pts = register(tree.reg_keys, tree.reg_pts, cl.keys[new], ep[new])
+    point_data = {}
+    if mesh.point_data:
+        corners = np.concatenate(centroid_of) if centroid_of else np.empty((0, 3), np.int64)
+        point_data = new_point_data(mesh.point_data, mesh.n_points, keys, pts, corners)
+    cell_data = {name: value[parents] for name, value in mesh.cell_data.items()}
+    out = Mesh._trusted(points, tris.astype(dtype), cell_tags, None, None, point_data,
+                        cell_data, mesh.physical_names)
     inside = np.repeat(tree.user[cl.leaves] & ~keep, nk)
     again = np.repeat(tree.again[cl.leaves] & (code != FULL), nk)  # done when partitioned
-    return out, parents, families, inside, again
+    return out, parents, families, inside, again, (keys, pts)
+
+
+def new_point_data(data: dict, n: int, keys: NDArray[np.int64], pts: NDArray[np.int64],
+                   corners: NDArray[np.int64]) -> dict:
+    """Point fields extended to the new points: on an edge ``(a, b)`` the refinement's own
+    formula (``(2 f_a + f_b) / 3``, ``(f_a + 2 f_b) / 3``; ``(f_a + f_b) / 2`` for one point
+    per edge), at a centroid the mean of the three corners, so linear fields stay exact to
+    rounding. ``keys, pts`` are the split edges and their points (from the lower id), ids
+    ``>= n`` new; ``corners (C, 3)`` are the corners of the new centroids, numbered after
+    the edge points. An edge's ends may be new points themselves (edges of the children
+    of a partitioned transition): values are filled in rounds, ends first."""
+    k = pts.shape[1]
+    a, b = keys // KEY, keys % KEY
+    new = pts[:, 0] >= n
+    a, b, ids = a[new], b[new], pts[new]
+    total = n + ids.size + corners.shape[0]
+    out = {}
+    for name, f in data.items():
+        v = np.zeros((total,) + f.shape[1:], dtype=np.result_type(f.dtype, np.float64))
+        v[:n] = f
+        known = np.zeros(total, dtype=bool)
+        known[:n] = True
+        todo_e = np.ones(a.size, dtype=bool)
+        todo_c = np.ones(corners.shape[0], dtype=bool)
+        while todo_e.any() or todo_c.any():
+            ready = todo_e & known[a] & known[b]
+            r = np.flatnonzero(ready)
+            if k == 1:
+                v[ids[r, 0]] = (v[a[r]] + v[b[r]]) * 0.5
+            else:
+                v[ids[r, 0]] = (2.0 * v[a[r]] + v[b[r]]) / 3.0
+                v[ids[r, 1]] = (v[a[r]] + 2.0 * v[b[r]]) / 3.0
+            known[ids[r].reshape(-1)] = True
+            todo_e &= ~ready
+            c = np.flatnonzero(todo_c & known[corners].all(axis=1))
+            v[n + ids.size + c] = (v[corners[c, 0]] + v[corners[c, 1]]
+                                   + v[corners[c, 2]]) / 3.0
+            known[n + ids.size + c] = True
+            todo_c[c] = False
+            if not (r.size or c.size):
+                raise RuntimeError("internal error: a new point's data depends on itself")
+        out[name] = v
+    return out
 
 
 def blocks(start: NDArray[np.int64], size: NDArray[np.int64]) -> NDArray[np.int64]:
@@ -90,7 +162,7 @@ def _families(rows: NDArray[np.int64], start: NDArray[np.int64], nk: NDArray[np.
     return Families(member, parent.reshape(-1, 3), sten.reshape(-1, old.stencil.shape[1]))
 
 
-def _split_tagged(edges: NDArray, tags: NDArray, keys: NDArray[np.int64],
+def split_tagged(edges: NDArray, tags: NDArray, keys: NDArray[np.int64],
                   pts: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Cut every tagged edge ``a -> b`` that has points (``keys``, ``pts`` from the lower
     id) into pieces with its tag and direction, again until no piece has points."""

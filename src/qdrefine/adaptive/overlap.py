@@ -7,6 +7,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .edgekeys import edge_keys, lookup, oriented
+from .patterns import pattern_stencil
 from .working import StepInput, Tree
 
 
@@ -32,13 +33,12 @@ def overlap_marks(inp: StepInput, tree: Tree, kids: NDArray[np.int64]) -> None:
 
 
 def _reference(k: int) -> NDArray[np.int64]:
-    """Integer coordinates ``(3 + 3k, 2)`` of the stencil in the triangle (0,0), (k+1,0),
-    (0,k+1): barycentric positions are affine invariants, so overlaps decided here are
-    the overlaps in every triangle."""
-    v = np.array([[0, 0], [k + 1, 0], [0, k + 1]])
-    pts = [v[e] + (j + 1) * (v[(e + 1) % 3] - v[e]) // (k + 1)
-           for e in range(3) for j in range(k)]
-    return np.concatenate([v, np.array(pts).reshape(-1, 2)])
+    """Integer coordinates ``(S, 2)`` of :func:`~qdrefine.adaptive.patterns.pattern_stencil`
+    in the triangle (0,0), (s,0), (0,s) with ``s = 3 (k+1)`` (then every stencil point,
+    the centroid included, has integer coordinates): barycentric positions are affine
+    invariants, so overlaps decided here are the overlaps in every triangle."""
+    w = np.array([[int(c * 3 * (k + 1)) for c in row] for row in pattern_stencil(k).weights])
+    return w[:, 1:].astype(np.int64)
 
 
 def _local(ids: NDArray, sten: NDArray[np.int64]) -> NDArray[np.int64]:

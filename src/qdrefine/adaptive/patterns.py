@@ -1,14 +1,28 @@
 """Transition patterns: the candidate triangulations per split code and the choice among
-them (largest minimum angle), in the canonical stencil of :mod:`qdrefine.stencil`."""
+them (largest minimum angle), in the canonical stencil of :mod:`qdrefine.stencil`.
+
+A triangle of the closure whose longest edge ``MN`` is split, and maybe one more edge, is
+replaced by a *transition pattern*: a triangulation of the polygon of its corners and the
+points of its split edges. For seven-triangle schemes the candidates also include the
+triangulations that add the triangle's centroid ``X`` (:func:`qdrefine.stencil.with_centroid`):
+on a near-equilateral triangle with one split edge they keep half of its minimum angle
+where the three-triangle fan keeps a third. Every candidate is a list of three-letter
+triangle names, counter-clockwise in the canonical frame; the validity of a candidate (no
+flat or clockwise triangle) is decided once, exactly, on barycentric coordinates, which
+are affine invariants, so it holds for every triangle.
+"""
 
 from __future__ import annotations
 
+from fractions import Fraction
 from functools import cache
+from itertools import combinations, product
 
 import numpy as np
+from numba import njit, prange
 from numpy.typing import NDArray
 
-from ..quality import angles
+from ..stencil import CENTROID, FIXED_7T, FOUR, SEVEN, Stencil, with_centroid
 from .edgekeys import oriented
 from .labels import MN, NO, OM
 
@@ -16,62 +30,233 @@ from .labels import MN, NO, OM
 PARTIAL = (MN, MN | NO, MN | OM)
 
 
-def _triangulations(poly: tuple[int, ...]) -> list[list[tuple[int, int, int]]]:
-    """All triangulations of a convex polygon (vertex ids in counter-clockwise order)."""
+def pattern_stencil(k: int) -> Stencil:
+    """The points transition patterns may use: the scheme's stencil, plus the centroid for
+    seven-triangle schemes (``k = 2``); four-triangle schemes keep longest-edge bisection."""
+    return with_centroid(SEVEN) if k == 2 else FOUR
+
+
+def _polygon(stencil: Stencil, code: int) -> tuple[str, ...]:
+    """Boundary of the triangle with the points of its split edges, counter-clockwise."""
+    k, n = stencil.per_edge, stencil.names
+    poly: list[str] = []
+    for e, bit in enumerate((MN, NO, OM)):
+        poly.append(n[e])
+        if code & bit:
+            poly.extend(n[3 + k * e: 3 + k * (e + 1)])
+    return tuple(poly)
+
+
+def _ccw(stencil: Stencil, tri: str) -> bool:
+    """Whether ``tri`` is counter-clockwise with positive area (exact, barycentric)."""
+    (a1, a2), (b1, b2), (c1, c2) = (stencil.coefficients(ch) for ch in tri)
+    return (b1 - a1) * (c2 - a2) - (b2 - a2) * (c1 - a1) > Fraction(0)
+
+
+def _polygon_triangulations(poly: tuple[str, ...]) -> list[list[str]]:
+    """All triangulations of a convex polygon (counter-clockwise names)."""
     if len(poly) < 3:
         return [[]]
     if len(poly) == 3:
-        return [[poly]]
+        return [["".join(poly)]]
     a, b = poly[0], poly[-1]
     out = []
     for i in range(1, len(poly) - 1):
-        for left in _triangulations(poly[: i + 1]):
-            for right in _triangulations(poly[i:]):
-                out.append(left + [(a, poly[i], b)] + right)
+        for left in _polygon_triangulations(poly[: i + 1]):
+            for right in _polygon_triangulations(poly[i:]):
+                out.append(left + [a + poly[i] + b] + right)
     return out
 
 
-def _seven_candidates(poly: tuple[str, ...]) -> list[tuple[str, ...]]:
-    """Non-degenerate triangulations of a heptagon of seven-point stencil names, the ones
-    holding most of the scheme's corner triangles first (so exact ties prefer them)."""
-    lines = ({"M", "D", "C", "N"}, {"N", "Q", "B", "O"}, {"O", "A", "P", "M"})
-    fixed = {frozenset(t) for t in ("MDP", "PDA", "CQB", "CNQ")}
-    cands = []
-    for tri in _triangulations(poly):
-        names = tuple("".join(t) for t in tri)
-        if any(set(t) <= line for t in names for line in lines):
-            continue
-        cands.append(names)
-    cands.sort(key=lambda c: -sum(frozenset(t) in fixed for t in c))
-    return cands
+def _valid(stencil: Stencil, tris: list[str]) -> bool:
+    return all(_ccw(stencil, t) for t in tris)
 
 
-#: Transition patterns by split code (bits MN=1, NO=2, OM=4) and points per edge: a list
-#: of candidate triangulations (three-letter names, counter-clockwise in the canonical
-#: frame); the candidate with the largest minimum angle is used, the first on ties.
+def _with_centroid(stencil: Stencil, poly: tuple[str, ...]) -> list[list[str]]:
+    """Triangulations of ``poly`` plus the interior point :data:`CENTROID`: the centroid is
+    joined to a cyclic subset of the polygon's points, and the pockets between two
+    consecutive neighbours are triangulated without it."""
+    n, out = len(poly), []
+    for r in range(3, n + 1):
+        for nbrs in combinations(range(n), r):
+            fan = [poly[nbrs[i]] + poly[nbrs[(i + 1) % r]] + CENTROID for i in range(r)]
+            if not _valid(stencil, fan):
+                continue
+            pockets = []
+            for i in range(r):
+                a, b = nbrs[i], nbrs[(i + 1) % r]
+                pocket = tuple(poly[(a + j) % n] for j in range((b - a) % n + 1))
+                if len(pocket) >= 3:
+                    pockets.append([t for t in _polygon_triangulations(pocket)
+                                    if _valid(stencil, t)])
+            for parts in product(*pockets):
+                out.append(fan + [t for part in parts for t in part])
+    return out
+
+
+def _candidates(k: int, code: int) -> list[tuple[str, ...]]:
+    """Valid triangulations for a split code: without the centroid first (the ones sharing
+    most corner triangles with the full seven-triangle partition first), then with it
+    (fewest triangles first); exact ties of the minimum angle pick the first. Four-triangle
+    schemes have one candidate, longest-edge bisection."""
+    stencil = pattern_stencil(k)
+    poly = _polygon(stencil, code)
+    fixed = {frozenset(t) for t in FIXED_7T}
+    plain = [t for t in _polygon_triangulations(poly) if _valid(stencil, t)]
+    if k == 1:  # longest-edge bisection (Rivara): every child has the midpoint of MN
+        plain = [c for c in plain if all(stencil.names[3] in t for t in c)]
+    plain.sort(key=lambda c: -sum(frozenset(t) in fixed for t in c))
+    centred = _with_centroid(stencil, poly) if CENTROID in stencil.names else []
+    centred.sort(key=len)
+    return [tuple(c) for c in plain + centred]
+
+
+#: Transition patterns by points per edge and split code (bits MN=1, NO=2, OM=4): the
+#: candidate triangulations (three-letter names over :func:`pattern_stencil`,
+#: counter-clockwise in the canonical frame); the one with the largest minimum angle is
+#: used, the first on ties.
 TRANSITIONS: dict[int, dict[int, list[tuple[str, ...]]]] = {
-    2: {
-        MN: [("MDO", "DCO", "CNO")],
-        MN | NO: _seven_candidates(("M", "D", "C", "N", "Q", "B", "O")),
-        MN | OM: _seven_candidates(("M", "D", "C", "N", "O", "A", "P")),
-    },
-    1: {
-        MN: [("MmO", "mNO")],
-        MN | NO: [("MmO", "mqO", "mNq")],
-        MN | OM: [("Mmp", "mOp", "mNO")],
-    },
+    k: {code: _candidates(k, code) for code in PARTIAL} for k in (2, 1)
 }
 
 
 @cache
-def _tables(k: int, code: int) -> tuple[NDArray[np.int8], NDArray[np.int64], NDArray[np.int8]]:
-    """``(tris (U,3), cand (C,T) indices into tris, table (C,T,3))`` of local indices."""
-    names = "MNODCQBAP" if k == 2 else "MNOmqp"
+def tables(k: int, code: int) -> tuple[NDArray[np.int8], NDArray[np.int64], NDArray[np.int64]]:
+    """``(tris (U, 3), cand (C, T) int, count (C,))``: the distinct triangles of the
+    candidates as local indices of :func:`pattern_stencil`, each candidate's triangles as
+    indices into ``tris`` padded with ``U`` to the longest candidate, and their counts."""
+    names = pattern_stencil(k).names
     cands = TRANSITIONS[k][code]
     uniq = sorted({t for c in cands for t in c})
     tris = np.array([[names.index(ch) for ch in t] for t in uniq], dtype=np.int8)
-    cand = np.array([[uniq.index(t) for t in c] for c in cands], dtype=np.int64)
-    return tris, cand, tris[cand]
+    width = max(len(c) for c in cands)
+    cand = np.full((len(cands), width), len(uniq), dtype=np.int64)
+    for i, c in enumerate(cands):
+        cand[i, : len(c)] = [uniq.index(t) for t in c]
+    return tris, cand, np.array([len(c) for c in cands], dtype=np.int64)
+
+
+def canonical_corners(points: NDArray[np.float64], rows: NDArray[np.int64],
+                      labels: NDArray[np.int8]) -> NDArray[np.float64]:
+    """Coordinates ``(G, 3, 2)`` of the canonical vertices ``M, N, O`` of ``rows (G, 3)``."""
+    return points[np.take_along_axis(rows, labels.astype(np.int64), axis=1)]
+
+
+def stencil_coordinates(corners: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+    """Coordinates ``(G, S, 2)`` of :func:`pattern_stencil` on triangles whose canonical
+    vertices ``M, N, O`` are ``corners (G, 3, 2)``: ``(w_M M + w_N N + w_O O) / d`` with the
+    integer weights over their common denominator ``d``, the formula of the edge points
+    (``(2 M + N) / 3``, ...), so these are the stored points bit for bit; the centroid is
+    ``(M + N + O) / 3``. A function of the three vertices alone (the same whatever the
+    input order)."""
+    weights = pattern_stencil(k).weights
+    den = np.lcm.reduce([c.denominator for row in weights for c in row])
+    w = np.array([[int(c * den) for c in row] for row in weights], dtype=np.float64)
+    return np.einsum("sv,gvd->gsd", w, corners) / float(den)
+
+
+def min_angles(tri: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Smallest angle (degrees) of triangles ``(..., 3, 2)``; 0 for degenerate ones."""
+    flat = np.ascontiguousarray(tri, dtype=np.float64).reshape(-1, 3, 2)
+    out = np.empty(flat.shape[0])
+    _min_angles(flat, out)
+    return out.reshape(tri.shape[:-2])
+
+
+@njit(cache=True, inline="always")
+def _corner_min(ax, ay, bx, by, cx, cy):
+    """Smallest angle (degrees) of the triangle ``a, b, c``."""
+    best = 180.0
+    for i in range(3):
+        if i == 0:
+            px, py, qx, qy, rx, ry = ax, ay, bx, by, cx, cy
+        elif i == 1:
+            px, py, qx, qy, rx, ry = bx, by, cx, cy, ax, ay
+        else:
+            px, py, qx, qy, rx, ry = cx, cy, ax, ay, bx, by
+        ex, ey = qx - px, qy - py
+        fx, fy = rx - px, ry - py
+        a = np.degrees(np.arctan2(abs(ex * fy - ey * fx), ex * fx + ey * fy))
+        best = min(best, a)
+    return best
+
+
+@njit(cache=True)
+def _min_angles(tri, out):
+    for g in range(tri.shape[0]):
+        out[g] = _corner_min(tri[g, 0, 0], tri[g, 0, 1], tri[g, 1, 0], tri[g, 1, 1],
+                             tri[g, 2, 0], tri[g, 2, 1])
+
+
+@njit(cache=True, inline="always")
+def _tan_min(ax, ay, bx, by, cx, cy):
+    """``tan`` of the smallest angle of the triangle ``a, b, c`` (at the vertex opposite its
+    shortest edge, where the angle is at most 60 degrees, so ``tan`` is increasing); 0 for
+    a degenerate triangle."""
+    la = (bx - cx) ** 2 + (by - cy) ** 2  # opposite a
+    lb = (cx - ax) ** 2 + (cy - ay) ** 2
+    lc = (ax - bx) ** 2 + (ay - by) ** 2
+    if la <= lb and la <= lc:
+        px, py, qx, qy, rx, ry = ax, ay, bx, by, cx, cy
+    elif lb <= lc:
+        px, py, qx, qy, rx, ry = bx, by, cx, cy, ax, ay
+    else:
+        px, py, qx, qy, rx, ry = cx, cy, ax, ay, bx, by
+    ex, ey = qx - px, qy - py
+    fx, fy = rx - px, ry - py
+    dot = ex * fx + ey * fy
+    if dot <= 0.0:
+        return 0.0
+    return abs(ex * fy - ey * fx) / dot
+
+
+@njit(parallel=True, cache=True)
+def _choose(coords, tris, cand, choice, score):
+    n_u = tris.shape[0]
+    for g in prange(coords.shape[0]):
+        ang = np.empty(n_u + 1)
+        for u in range(n_u):
+            a, b, c = tris[u, 0], tris[u, 1], tris[u, 2]
+            ang[u] = _tan_min(coords[g, a, 0], coords[g, a, 1], coords[g, b, 0],
+                              coords[g, b, 1], coords[g, c, 0], coords[g, c, 1])
+        ang[n_u] = np.inf
+        best, at = -1.0, 0
+        for c in range(cand.shape[0]):
+            s = np.inf
+            for t in range(cand.shape[1]):
+                s = min(s, ang[cand[c, t]])
+            if s > best:  # the first candidate on ties
+                best, at = s, c
+        choice[g] = at
+        score[g] = np.degrees(np.arctan(best))
+
+
+def choose(coords: NDArray[np.float64], k: int, code: int
+           ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Candidate index and its minimum angle (degrees) per triangle, from the stencil
+    coordinates ``(G, S, 2)`` of :func:`stencil_coordinates`."""
+    tris, cand, _ = tables(k, code)
+    g = coords.shape[0]
+    choice = np.empty(g, dtype=np.int64)
+    score = np.empty(g)
+    if g:
+        _choose(np.ascontiguousarray(coords, dtype=np.float64), tris.astype(np.int64), cand,
+                choice, score)
+    return choice, score
+
+
+def quality(coords: NDArray[np.float64], k: int, code: int) -> NDArray[np.float64]:
+    """Minimum angle (degrees) of the best transition of each triangle for ``code``."""
+    return choose(coords, k, code)[1]
+
+
+def uses_centroid(k: int, code: int, choice: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """Whether each chosen candidate uses the centroid (a new point)."""
+    if k != 2:
+        return np.zeros(choice.shape, dtype=bool)
+    tris, cand, _ = tables(k, code)
+    centred = np.append((tris == 3 + 3 * k).any(axis=1), False)
+    return centred[cand].any(axis=1)[choice]
 
 
 def stencil_ids(t: NDArray, labels: NDArray[np.int8], ce: NDArray[np.int64],
@@ -88,24 +273,16 @@ def stencil_ids(t: NDArray, labels: NDArray[np.int8], ce: NDArray[np.int64],
     return ids
 
 
-def choose(points: NDArray[np.float64], ids: NDArray[np.int64], k: int, code: int
-           ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Candidate index and its minimum angle (degrees) per triangle, ``ids`` from
-    :func:`stencil_ids` (points must hold the split edges' points)."""
-    tris, cand, _ = _tables(k, code)
-    g = ids.shape[0]
-    corners = ids[:, tris]  # (G, U, 3)
-    ang = angles(points, corners.reshape(-1, 3)).min(axis=1).reshape(g, -1)
-    score = ang[:, cand].min(axis=2)  # (G, C)
-    choice = np.argmax(score, axis=1)  # first candidate on ties
-    return choice, score[np.arange(g), choice]
-
-
-def pattern(points: NDArray[np.float64], ids: NDArray[np.int64], labels: NDArray[np.int8],
-            k: int, code: int) -> NDArray[np.int64]:
-    """Children ``(G, T, 3)`` of triangles with split code ``code`` (not 0 or full)."""
-    choice = choose(points, ids, k, code)[0]
-    local = _tables(k, code)[2][choice].astype(np.int64)  # (G, T, 3)
+def pattern(ids: NDArray[np.int64], labels: NDArray[np.int8], k: int, code: int,
+            choice: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Children of triangles with split code ``code`` (not 0 or full) in the chosen
+    candidates: ``(children (sum count, 3), count (G,))``; ``ids (G, S)`` are the global
+    ids of :func:`pattern_stencil` (the centroid's where it is used)."""
+    tris, cand, count = tables(k, code)
+    local = np.concatenate([tris, np.zeros((1, 3), np.int8)])[cand[choice]].astype(np.int64)
     flip = (labels[:, 1].astype(np.int64) - labels[:, 0]) % 3 != 1
     local[flip] = local[flip][:, :, [0, 2, 1]]
-    return np.take_along_axis(ids[:, None, :], local, axis=2)
+    kids = ids[np.arange(ids.shape[0])[:, None, None], local]
+    n = count[choice]
+    keep = np.arange(cand.shape[1]) < n[:, None]
+    return kids[keep], n

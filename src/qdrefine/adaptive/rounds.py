@@ -1,18 +1,22 @@
-"""The rounds of one step on the working mesh: closure, expansion of conflicts (two levels
-of points on one edge) and the quality guard, until nothing changes."""
+"""The rounds of one step on the working mesh: closure (with the upgrade of poor
+transitions), expansion of conflicts (two levels of points on one edge), until nothing
+changes."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..kernels import number_edges
+from ..partition import partition_many
+from ..schemes import Scheme
 from .edgekeys import edge_keys, lookup
-from .labels import FULL, canonical_edges, split_codes
+from .labels import MN, NO, OM, canonical_edges, split_codes
 from .longest_edge import closure
-from .patterns import PARTIAL, choose, stencil_ids
+from .patterns import canonical_corners, min_angles, quality, stencil_coordinates
 from .working import StepInput, Tree, expand, with_edge_points
 
 
@@ -40,8 +44,11 @@ class Closure:
         return split_codes(self.split[self.ce])
 
 
-def close(tree: Tree) -> Closure:
-    """Edges of the working mesh and the closure of its marks (pre-split edges included)."""
+def close(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.int64]],
+                                         NDArray[np.bool_]] | None = None) -> Closure:
+    """Edges of the working mesh and the closure of its marks (pre-split edges included),
+    with ``upgrades(nodes, codes)`` (e.g. :class:`Upgrades`) saying which triangles get
+    ``NO`` split too."""
     leaves = tree.leaves()
     rows = tree.rows[leaves]
     edges, tri_edges, counts = number_edges(rows, tree.points.shape[0])
@@ -49,7 +56,9 @@ def close(tree: Tree) -> Closure:
     pos = lookup(tree.reg_keys, keys)
     labels = tree.labels[leaves]
     ce = canonical_edges(labels, tri_edges)
-    split, _ = closure(ce, tree.mark[leaves], edges.shape[0], presplit=pos >= 0)
+    split, _ = closure(ce, tree.mark[leaves], edges.shape[0], presplit=pos >= 0,
+                       upgrade=None if upgrades is None else
+                       lambda t, code: upgrades(leaves[t], code))
     return Closure(leaves, rows, edges, tri_edges, counts, keys, pos, labels, ce, split)
 
 
@@ -73,24 +82,61 @@ def conflicts(inp: StepInput, tree: Tree, cl: Closure) -> bool:
     return True
 
 
-def promote(inp: StepInput, tree: Tree, cl: Closure, floor: float) -> bool:
-    """Quality guard: mark the working triangles whose new transition has a child with
-    minimum angle below ``floor``; seven-triangle schemes only."""
-    if inp.k != 2 or floor <= 0:
-        return False
-    code = cl.codes()
-    partial = (code != 0) & (code != FULL) & ~unchanged(inp, tree, cl, code)
-    if not partial.any():
-        return False
-    points, ep = new_points(tree, cl, inp.k)
-    bad = np.zeros(code.shape[0], dtype=bool)
-    for c in PARTIAL:
-        sel = np.flatnonzero(partial & (code == c))
-        if sel.size:
-            ids = stencil_ids(cl.rows[sel], cl.labels[sel], cl.ce[sel], ep, inp.k)
-            bad[sel] = choose(points, ids, inp.k, c)[1] < floor
-    tree.mark[cl.leaves[bad]] = True
-    return bool(bad.any())
+#: A transition that leaves ``NO`` unsplit is upgraded (``NO`` split too) when that
+#: multiplies the smallest angle of its best pattern by at least this factor
+#: (docs/adaptive.md, "Upgrades").
+UPGRADE = 1.6
+
+
+class Upgrades:
+    """The upgrade rule of a step, a property of each working triangle's shape alone.
+
+    A transition that leaves ``NO`` unsplit (codes ``MN`` and ``MN, OM``) of a
+    seven-triangle scheme keeps, at worst, about half of its triangle's minimum angle; on
+    right-angled triangles splitting ``NO`` too keeps much more (all of it on a 30-60-90
+    triangle). A triangle gets ``NO`` split when its ``MN`` is split and the best pattern
+    with ``NO`` split is at least :data:`UPGRADE` times better than the best without
+    (``MN, NO`` against ``MN``), or, once its ``OM`` is split too, when the full partition is
+    that much better than the best ``MN, OM`` pattern. The rule is monotone (more split edges
+    never undo an upgrade), so the closure has one least fixed point whatever the order of
+    its rounds. No mesh-wide floor: the comparison is on the triangle's own shape. The two
+    verdicts are computed once per tree node, on first need.
+    """
+
+    def __init__(self, inp: StepInput, tree: Tree) -> None:
+        self.inp, self.tree = inp, tree
+        self.verdicts = np.full((0, 2), -1, dtype=np.int8)  # (nodes, [by MN, by OM])
+
+    def __call__(self, nodes: NDArray[np.int64], code: NDArray[np.int64]) -> NDArray[np.bool_]:
+        if self.inp.k != 2:
+            return np.zeros(nodes.shape, dtype=bool)
+        size = self.tree.rows.shape[0]
+        if self.verdicts.shape[0] < size:  # the tree grew
+            grow = np.full((size - self.verdicts.shape[0], 2), -1, dtype=np.int8)
+            self.verdicts = np.concatenate([self.verdicts, grow])
+        with_om = (code & OM) != 0
+        for col, need in ((0, np.ones(nodes.shape, dtype=bool)), (1, with_om)):
+            todo = np.unique(nodes[need & (self.verdicts[nodes, col] < 0)])
+            if todo.size:
+                self.verdicts[todo, col] = self._judge(todo, col)
+        return (self.verdicts[nodes, 0] == 1) | (with_om & (self.verdicts[nodes, 1] == 1))
+
+    def _judge(self, nodes: NDArray[np.int64], col: int) -> NDArray[np.int8]:
+        k, tree = self.inp.k, self.tree
+        corners = canonical_corners(tree.points, tree.rows[nodes], tree.labels[nodes])
+        coords = stencil_coordinates(corners, k)
+        if col == 0:
+            better = quality(coords, k, MN | NO) >= UPGRADE * quality(coords, k, MN)
+        else:
+            better = full_quality(corners, self.inp.sch) >= UPGRADE * quality(coords, k,
+                                                                              MN | OM)
+        return better.astype(np.int8)
+
+
+def full_quality(corners: NDArray[np.float64], sch: Scheme) -> NDArray[np.float64]:
+    """Smallest angle (degrees) of the scheme's partition of triangles ``(G, 3, 2)``."""
+    points, tris = partition_many(corners, sch, strict=False)
+    return min_angles(points[np.arange(tris.shape[0])[:, None, None], tris]).min(axis=1)
 
 
 def unchanged(inp: StepInput, tree: Tree, cl: Closure, code: NDArray[np.int64]

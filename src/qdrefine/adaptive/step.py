@@ -3,6 +3,8 @@ then the follow-up step that partitions the children meeting marked transition c
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -11,33 +13,67 @@ from ..schemes import Scheme
 from .families import Families
 from .output import emit_step
 from .overlap import overlap_marks
-from .rounds import close, conflicts, promote
+from .rounds import Upgrades, close, conflicts
 from .working import start
 
 
+@dataclass(frozen=True)
+class Step:
+    """The result of one step.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        Without tagged edges (cut them with ``split_keys`` and ``split_points``).
+    parents : (M',) int64
+        Input triangle of each output triangle.
+    families : Families
+        The output's transition families.
+    inside : (M',) bool
+        Output triangles inside marked input triangles (for ``levels``).
+    centroids : (C,) int64
+        Centroid points of the input's (and the follow-up's) transitions: those no output
+        triangle uses any more belong to coarsened transitions and are to be removed.
+    split_keys : (R,) int64 and split_points : (R, k) int64
+        Every edge that has points (edge keys, sorted) and its points from the lower id.
+    """
+
+    mesh: Mesh
+    parents: NDArray[np.int64]
+    families: Families
+    inside: NDArray[np.bool_]
+    centroids: NDArray[np.int64]
+    split_keys: NDArray[np.int64]
+    split_points: NDArray[np.int64]
+
+
 def step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_], sch: Scheme,
-         floor: float, fam: Families
-         ) -> tuple[Mesh, NDArray[np.int64], Families, NDArray[np.bool_]]:
-    """One refinement step, with the follow-up step that partitions the children meeting
-    marked members; returns ``(mesh, parents, families, inside)``, ``inside`` flagging the
-    output triangles that lie in marked input triangles (for ``levels``)."""
-    out, parents, fam, inside, again = _one_step(mesh, marked, fam_marked, sch, floor, fam)
+         fam: Families) -> Step:
+    """One refinement step of ``mesh`` with transition families ``fam`` (``marked``
+    triangles and ``fam_marked`` families partitioned), with the follow-up step that
+    partitions the children meeting marked members."""
+    out, parents, fam2, inside, again, (keys, pts) = _one_step(mesh, marked, fam_marked, sch,
+                                                               fam)
+    centroids = fam.centroids()
     if again.any():
-        fam_again = np.zeros(fam.n_families, dtype=bool)
-        fam_again[fam.member[again & (fam.member >= 0)]] = True
-        out, step_parents, fam, inside2, _ = _one_step(out, again & (fam.member < 0),
-                                                       fam_again, sch, floor, fam)
+        fam_again = np.zeros(fam2.n_families, dtype=bool)
+        fam_again[fam2.member[again & (fam2.member >= 0)]] = True
+        centroids = np.union1d(centroids, fam2.centroids())
+        out, step_parents, fam2, inside2, _, (keys2, pts2) = _one_step(
+            out, again & (fam2.member < 0), fam_again, sch, fam2)
         parents, inside = parents[step_parents], inside[step_parents] | inside2
-    return out, parents, fam, inside
+        keys, first = np.unique(np.concatenate([keys, keys2]), return_index=True)
+        pts = np.concatenate([pts, pts2])[first]
+    return Step(out, parents, fam2, inside, centroids, keys, pts)
 
 
 def _one_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_],
-              sch: Scheme, floor: float, fam: Families
-              ) -> tuple[Mesh, NDArray[np.int64], Families, NDArray[np.bool_],
-                         NDArray[np.bool_]]:
+              sch: Scheme, fam: Families):
     inp, tree, kids = start(mesh, marked, fam_marked, sch, fam)
     overlap_marks(inp, tree, kids)
+    upgrades = Upgrades(inp, tree)
     while True:
-        cl = close(tree)
-        if not (conflicts(inp, tree, cl) or promote(inp, tree, cl, floor)):
+        cl = close(tree, upgrades)
+        if not conflicts(inp, tree, cl):
             return emit_step(inp, tree, cl)
+

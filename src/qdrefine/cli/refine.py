@@ -10,12 +10,11 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from ..adaptive import KEEP, Families, refine_step
+from ..adaptive import refine_marked
 from ..io import read, write
 from ..marking import mark_box, mark_file, mark_tag
 from ..memory import check_memory
 from ..mesh import Mesh
-from ..quality import angles
 from ..refine import refine
 from ..schemes import get_scheme, scheme_names
 from . import _common
@@ -156,18 +155,16 @@ def _on_dask(args: argparse.Namespace) -> int:
 
 def _local(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress
            ) -> tuple[Mesh, str]:
-    """``--cycles`` rounds of mark, coarsen transitions, refine (fixed quality floor)."""
+    """``--cycles`` rounds of mark and refine (transitions coarsened before refined)."""
     cycles = 1 if args.cycles is None else args.cycles
     mark = _marker(mesh, args)
-    floor = KEEP * float(angles(mesh.points, mesh.triangles).min())
-    fam = Families.empty(mesh.n_triangles, get_scheme(args.scheme).stencil.per_edge)
     parents = np.arange(mesh.n_triangles, dtype=np.int64)
     n0, n_marked = mesh.n_triangles, 0
     for cycle in range(1, cycles + 1):
         progress.step(f"refining, cycle {cycle}/{cycles}")
         marked = mark(mesh, parents)
         n_marked += int(marked.sum())
-        mesh, step, fam = refine_step(mesh, marked, args.scheme, floor, fam)
+        mesh, step = refine_marked(mesh, marked, args.scheme)
         parents = parents[step]
     return mesh, (f"{n_marked} triangles marked, {mesh.n_triangles - n0} added by "
                   f"{args.scheme} in {cycles} cycle{'s' if cycles != 1 else ''}")

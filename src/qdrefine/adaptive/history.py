@@ -1,0 +1,145 @@
+"""The refinement history a mesh carries (:attr:`qdrefine.Mesh.transitions`) as transition
+families, and back.
+
+A mesh stores, for each triangle made by a transition pattern, the vertex row of the
+triangle the pattern replaced. That is all a later call needs: the family's members are the
+triangles with the same row, and which edges the pattern split (and with which points) is
+recovered from the members' vertices, whose coordinates are the refinement's own formula
+applied to the parent's vertices, so they are matched exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..mesh import Mesh
+from .edgekeys import oriented
+from .families import Families
+from .labels import canonical_labels
+from .patterns import canonical_corners, pattern_stencil, stencil_coordinates
+from .working import with_edge_points
+
+
+def families_of(mesh: Mesh, k: int) -> tuple[Mesh, Families, NDArray[np.int64] | None]:
+    """Transition families of ``mesh`` for a scheme with ``k`` points per edge.
+
+    Returns
+    -------
+    mesh : Mesh
+        ``mesh``, its triangles reordered so that each family's members are consecutive
+        (only when they are not already, e.g. after a file round trip in another order).
+    families : Families
+    order : (M,) int64 or None
+        Input triangle of each row of the returned mesh; ``None`` when not reordered.
+
+    Raises
+    ------
+    ValueError
+        When a family's members do not tile its parent with the pattern points the
+        refinement would have made (a history that does not belong to these points).
+    """
+    rows = mesh.transitions
+    m = mesh.n_triangles
+    if rows is None or not (rows[:, 0] >= 0).any():
+        return mesh, Families.empty(m, k), None
+    green = np.flatnonzero(rows[:, 0] >= 0)
+    parent_rows, family = np.unique(_rotated(rows[green]), axis=0, return_inverse=True)
+    family = family.reshape(-1)
+    first = np.full(parent_rows.shape[0], m, dtype=np.int64)
+    np.minimum.at(first, family, green)
+    key = np.arange(m, dtype=np.int64)
+    key[green] = first[family]
+    order = np.argsort(key, kind="stable")
+    if (order == np.arange(m)).all():
+        order = None
+    else:
+        mesh = _reordered(mesh, order)
+        green = np.flatnonzero(mesh.transitions[:, 0] >= 0)
+        parent_rows, family = np.unique(_rotated(mesh.transitions[green]), axis=0,
+                                        return_inverse=True)
+        family = family.reshape(-1)
+    # families numbered by first member, as the refinement numbers them
+    first = np.full(parent_rows.shape[0], m, dtype=np.int64)
+    np.minimum.at(first, family, green)
+    rank = np.empty_like(first)
+    rank[np.argsort(first)] = np.arange(first.size)
+    member = np.full(m, -1, dtype=np.int64)
+    member[green] = rank[family]
+    parent_rows = parent_rows[np.argsort(first)]
+    stencil = _stencils(mesh, parent_rows, member, k)
+    return mesh, Families(member, parent_rows, stencil), order
+
+
+def with_history(mesh: Mesh, families: Families) -> Mesh:
+    """``mesh`` with :attr:`~qdrefine.Mesh.transitions` set from ``families`` (``None``
+    when no triangle is a transition child)."""
+    member = families.member
+    rows = None
+    if (member >= 0).any():
+        rows = np.full((member.size, 3), -1, dtype=np.int64)
+        rows[member >= 0] = families.rows[member[member >= 0]]
+    return Mesh._trusted(mesh.points, mesh.triangles, mesh.cell_tags, mesh.edges,
+                         mesh.edge_tags, mesh.point_data, mesh.cell_data,
+                         mesh.physical_names, rows)
+
+
+def _rotated(rows: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Each row rotated to start at its smallest id (the same triangle, one spelling)."""
+    shift = np.argmin(rows, axis=1)[:, None]
+    return np.take_along_axis(rows, (shift + np.arange(3)) % 3, axis=1)
+
+
+def _reordered(mesh: Mesh, order: NDArray[np.int64]) -> Mesh:
+    cell_data = {k: v[order] for k, v in mesh.cell_data.items()}
+    tags = None if mesh.cell_tags is None else mesh.cell_tags[order]
+    return Mesh._trusted(mesh.points, mesh.triangles[order], tags, mesh.edges,
+                         mesh.edge_tags, mesh.point_data, cell_data, mesh.physical_names,
+                         mesh.transitions[order])
+
+
+def _stencils(mesh: Mesh, parent_rows: NDArray[np.int64], member: NDArray[np.int64],
+              k: int) -> NDArray[np.int64]:
+    """Each family's pattern stencil ``(F, S)``: its canonical corners, and the members'
+    other vertices matched to the points the refinement makes on the parent."""
+    f = parent_rows.shape[0]
+    width = len(pattern_stencil(k).names)
+    labels = canonical_labels(mesh.points, parent_rows)
+    corners = np.take_along_axis(parent_rows, labels.astype(np.int64), axis=1)
+    # the points refinement would put on the parent's edges, and its centroid
+    expected = np.empty((f, width - 3, 2))
+    for e in range(3):
+        a, b = corners[:, e], corners[:, (e + 1) % 3]
+        ends = np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
+        pts, ids = with_edge_points(mesh.points, ends, k)
+        ids = oriented(ids, a, b)
+        expected[:, k * e: k * (e + 1)] = pts[ids]
+    if width - 3 > 3 * k:
+        expected[:, -1] = stencil_coordinates(canonical_corners(mesh.points, parent_rows,
+                                                                labels), k)[:, -1]
+    stencil = np.full((f, width), -1, dtype=np.int64)
+    stencil[:, :3] = corners
+    tri = np.flatnonzero(member >= 0)
+    fam = np.repeat(member[tri], 3)
+    vert = mesh.triangles[tri].astype(np.int64).reshape(-1)
+    pairs = np.unique(np.stack([fam, vert], axis=1), axis=0)
+    fam, vert = pairs[:, 0], pairs[:, 1]
+    corner = (corners[fam] == vert[:, None]).any(axis=1)
+    fam, vert = fam[~corner], vert[~corner]
+    hit = (mesh.points[vert][:, None, :] == expected[fam]).all(axis=2)  # (P, S - 3)
+    found = hit.any(axis=1)
+    if not found.all():
+        bad = int(np.flatnonzero(member == fam[~found][0])[0])
+        raise ValueError(f"transitions: triangle {bad} is marked as a transition child, but "
+                         f"point {int(vert[~found][0])} is not a point the refinement makes "
+                         "on its parent (pass mesh.replace(transitions=None) to drop the "
+                         "history)")
+    stencil[fam, 3 + np.argmax(hit, axis=1)] = vert
+    edge_pts = stencil[:, 3: 3 + 3 * k].reshape(f, 3, k)
+    if ((edge_pts >= 0).any(axis=2) != (edge_pts >= 0).all(axis=2)).any():
+        bad = int(np.flatnonzero(((edge_pts >= 0).any(axis=2)
+                                  != (edge_pts >= 0).all(axis=2)).any(axis=1))[0])
+        raise ValueError(f"transitions: the family of triangle "
+                         f"{int(np.flatnonzero(member == bad)[0])} has an edge with only "
+                         "some of its points")
+    return stencil

@@ -1,0 +1,230 @@
+"""Work proportional to the marks: a step runs on a window of the mesh around the marked
+triangles, grown until no edge on the window's rim is split, and the result is stitched
+into the untouched rest.
+
+The step's decisions are local (closure along split edges, patterns by a triangle's own
+shape), so on a window whose rim keeps all its edges unsplit the step does exactly what it
+does on the whole mesh; the window's points are renumbered in increasing global order, so
+split edges, new points and centroids come out in the same order too, and the stitched
+result is identical to the whole-mesh step (tested). The only passes over the whole mesh
+are the vertex-to-triangle table (numba, linear) and the copy of the untouched triangles.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from ..mesh import Mesh, index_dtype
+from ..schemes import Scheme
+from .edgekeys import KEY, edge_keys, lookup
+from .families import Families
+from .step import Step, step
+
+#: Below this many triangles the step runs on the whole mesh.
+WHOLE_BELOW = 20_000
+
+
+def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_],
+                  sch: Scheme, fam: Families) -> Step:
+    """:func:`~qdrefine.adaptive.step.step` on a window around the marks, stitched."""
+    m = mesh.n_triangles
+    if m < WHOLE_BELOW:
+        return step(mesh, marked, fam_marked, sch, fam)
+    start, tris_of = vertex_triangles(mesh.triangles, mesh.n_points)
+    seed = marked.copy()
+    seed[fam.member >= 0] |= fam_marked[fam.member[fam.member >= 0]]
+    window = _grown(mesh.triangles, start, tris_of, seed, 2)
+    while True:
+        window = _whole_families(window, fam)
+        if window.all():
+            return step(mesh, marked, fam_marked, sch, fam)
+        res, verts = _sub_step(mesh, window, marked, fam_marked, sch, fam)
+        to_global = np.concatenate([verts, mesh.n_points
+                                    + np.arange(res.mesh.n_points - verts.size)])
+        rim = _split_rim(mesh.triangles, start, tris_of, window, to_global, res)
+        if not rim.any():
+            return _stitched(mesh, window, verts, to_global, res, fam)
+        window = _grown(mesh.triangles, start, tris_of, window | rim, 2)
+
+
+@njit(cache=True)
+def _vertex_triangles(triangles, n_points, start, out):
+    for t in range(triangles.shape[0]):
+        for j in range(3):
+            start[triangles[t, j] + 1] += 1
+    for v in range(n_points):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    for t in range(triangles.shape[0]):
+        for j in range(3):
+            v = triangles[t, j]
+            out[fill[v]] = t
+            fill[v] += 1
+
+
+def vertex_triangles(triangles: NDArray, n_points: int
+                     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Triangles around each vertex: ``tris_of[start[v]:start[v + 1]]`` (increasing)."""
+    start = np.zeros(n_points + 1, dtype=np.int64)
+    out = np.empty(3 * triangles.shape[0], dtype=np.int64)
+    _vertex_triangles(triangles, n_points, start, out)
+    return start, out
+
+
+@njit(cache=True)
+def _ring(triangles, start, tris_of, inside, out):
+    for t in range(triangles.shape[0]):
+        if inside[t]:
+            for j in range(3):
+                v = triangles[t, j]
+                for i in range(start[v], start[v + 1]):
+                    out[tris_of[i]] = True
+
+
+def _grown(triangles: NDArray, start: NDArray[np.int64], tris_of: NDArray[np.int64],
+           window: NDArray[np.bool_], rings: int) -> NDArray[np.bool_]:
+    """``window`` with ``rings`` layers of triangles sharing a vertex with it added."""
+    for _ in range(rings):
+        out = window.copy()
+        _ring(triangles, start, tris_of, window, out)
+        window = out
+    return window
+
+
+def _whole_families(window: NDArray[np.bool_], fam: Families) -> NDArray[np.bool_]:
+    """``window`` with every family that has a member in it complete."""
+    member = fam.member
+    hit = np.zeros(fam.n_families + 1, dtype=bool)
+    hit[member[window & (member >= 0)]] = True
+    hit[-1] = False
+    return window | hit[member]
+
+
+def _sub_step(mesh: Mesh, window: NDArray[np.bool_], marked: NDArray[np.bool_],
+              fam_marked: NDArray[np.bool_], sch: Scheme, fam: Families
+              ) -> tuple[Step, NDArray[np.int64]]:
+    """The step on the window's triangles, with its points renumbered in increasing
+    global order; returns the step and the window's points ``verts`` (global ids)."""
+    rows = np.flatnonzero(window)
+    tris = mesh.triangles[rows]
+    verts, local = np.unique(tris, return_inverse=True)
+    local = local.reshape(-1, 3).astype(index_dtype(verts.size))
+    point_data = {name: v[verts] for name, v in mesh.point_data.items()}
+    cell_data = {name: v[rows] for name, v in mesh.cell_data.items()}
+    tags = None if mesh.cell_tags is None else mesh.cell_tags[rows]
+    sub = Mesh._trusted(mesh.points[verts], local, tags, None, None, point_data, cell_data,
+                        mesh.physical_names)
+    member = fam.member[rows]
+    used = np.unique(member[member >= 0])
+    new_fam = np.full(fam.n_families + 1, -1, dtype=np.int64)
+    new_fam[used] = np.arange(used.size)
+    to_local = np.full(mesh.n_points + 1, -1, dtype=np.int64)  # -1 stays -1
+    to_local[verts] = np.arange(verts.size)
+    sub_fam = Families(new_fam[member], to_local[fam.rows[used]], to_local[fam.stencil[used]])
+    return step(sub, marked[rows], fam_marked[used], sch, sub_fam), verts
+
+
+def _split_rim(triangles: NDArray, start: NDArray[np.int64], tris_of: NDArray[np.int64],
+               window: NDArray[np.bool_], to_global: NDArray[np.int64], res: Step
+               ) -> NDArray[np.bool_]:
+    """Triangles outside the window across a rim edge that the step split."""
+    rows = np.flatnonzero(window)
+    t = triangles[rows].astype(np.int64)
+    a, b = t.reshape(-1), np.roll(t, -1, axis=1).reshape(-1)
+    keys, count = np.unique(edge_keys(a, b), return_counts=True)
+    once = keys[count == 1]
+    split = once[lookup(_global_registry(res, to_global)[0], once) >= 0]
+    out = np.zeros(window.shape[0], dtype=bool)
+    if split.size:
+        _outside_across(triangles, start, tris_of, window, split // KEY, split % KEY, out)
+    return out
+
+
+@njit(cache=True)
+def _outside_across(triangles, start, tris_of, window, a, b, out):
+    for e in range(a.shape[0]):
+        for i in range(start[a[e]], start[a[e] + 1]):
+            t = tris_of[i]
+            if window[t]:
+                continue
+            for j in range(3):
+                if triangles[t, j] == b[e]:
+                    out[t] = True
+
+
+def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
+              to_global: NDArray[np.int64], res: Step, fam: Families) -> Step:
+    """The whole mesh's step from the window's: untouched triangles copied, the window's
+    output in their place (input order), its new points after the mesh's points."""
+    sub = res.mesh
+    n_sub = verts.size
+    rows = np.flatnonzero(window)
+    count = np.ones(mesh.n_triangles, dtype=np.int64)
+    count[rows] = np.bincount(res.parents, minlength=rows.size)
+    first = np.cumsum(count) - count
+    out_rows = first[rows[res.parents]] + _rank_within(res.parents)
+    total = int(count.sum())
+    keep = np.flatnonzero(~window)
+    parents = np.empty(total, dtype=np.int64)
+    parents[first[keep]] = keep
+    parents[out_rows] = rows[res.parents]
+    points = np.concatenate([mesh.points, sub.points[n_sub:]])
+    dtype = index_dtype(points.shape[0])
+    tris = np.empty((total, 3), dtype=dtype)
+    tris[first[keep]] = mesh.triangles[keep]
+    tris[out_rows] = to_global[sub.triangles]
+    tags = None
+    if mesh.cell_tags is not None:
+        tags = mesh.cell_tags[parents]
+    cell_data = {}
+    for name, v in mesh.cell_data.items():
+        c = np.empty((total,) + v.shape[1:], dtype=v.dtype)
+        c[first[keep]] = v[keep]
+        c[out_rows] = sub.cell_data[name]
+        cell_data[name] = c
+    point_data = {name: np.concatenate([v.astype(sub.point_data[name].dtype, copy=False),
+                                        sub.point_data[name][n_sub:]])
+                  for name, v in mesh.point_data.items()}
+    out = Mesh._trusted(points, tris, tags, None, None, point_data, cell_data,
+                        mesh.physical_names)
+    # families: the untouched ones keep their members, the window's come from the step
+    member = np.full(total, -1, dtype=np.int64)
+    outside = fam.member[keep]
+    member[first[keep]] = outside
+    old = np.unique(outside[outside >= 0])
+    member[out_rows] = np.where(res.families.member >= 0,
+                                fam.n_families + res.families.member, -1)
+    ids = np.concatenate([old, fam.n_families + np.arange(res.families.n_families)])
+    rows_all = np.concatenate([fam.rows[old], to_global[res.families.rows]])
+    sten_all = np.concatenate([fam.stencil[old],
+                               np.where(res.families.stencil >= 0,
+                                        to_global[np.maximum(res.families.stencil, 0)], -1)])
+    present = member >= 0
+    first_of = np.full(fam.n_families + res.families.n_families, total, dtype=np.int64)
+    np.minimum.at(first_of, member[present], np.flatnonzero(present))
+    order = np.argsort(first_of[ids], kind="stable")
+    renum = np.full(first_of.size, -1, dtype=np.int64)
+    renum[ids[order]] = np.arange(ids.size)
+    member[present] = renum[member[present]]
+    families = Families(member, rows_all[order], sten_all[order])
+    inside = np.zeros(total, dtype=bool)
+    inside[out_rows] = res.inside
+    return Step(out, parents, families, inside, to_global[res.centroids],
+                *_global_registry(res, to_global))
+
+
+def _rank_within(parents: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Position of each child among the children of its parent (``parents`` sorted)."""
+    idx = np.arange(parents.size)
+    starts = np.flatnonzero(np.r_[True, parents[1:] != parents[:-1]])
+    return idx - np.repeat(starts, np.diff(np.r_[starts, parents.size]))
+
+
+def _global_registry(res: Step, to_global: NDArray[np.int64]
+                     ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    lo, hi = res.split_keys // KEY, res.split_keys % KEY
+    keys = to_global[lo] * KEY + to_global[hi]
+    order = np.argsort(keys)
+    return keys[order], to_global[res.split_points][order]
