@@ -29,6 +29,7 @@ __all__ = ["DeviceEdges", "THREADS", "blocks", "edge_id", "exclusive_scan", "sor
 
 THREADS = 128  #: threads per block of every kernel
 SCAN_CHUNK = 32  #: elements per thread in :func:`exclusive_scan`
+SCAN_SERIAL = 1024  #: at most this many elements are scanned by a single thread
 
 
 def blocks(n: int) -> int:
@@ -187,10 +188,11 @@ def edge_id(a, b, starts, first, hi):
 def exclusive_scan(values):
     """``(L + 1,) int64`` exclusive prefix sums of device ``values (L,)`` (the last entry is
     the total): per thread a chunk of :data:`SCAN_CHUNK`, the chunk totals scanned
-    recursively, a single thread for the last few thousand."""
+    recursively, a single thread for at most :data:`SCAN_SERIAL` (one thread walks memory
+    with a latency per load: keep its share small)."""
     size = values.shape[0]
     out = cuda.device_array(size + 1, dtype=np.int64)
-    if size <= 4 * THREADS * SCAN_CHUNK:
+    if size <= SCAN_SERIAL:
         _serial_scan[1, 1](values, out)
         return out
     n_chunks = (size + SCAN_CHUNK - 1) // SCAN_CHUNK
