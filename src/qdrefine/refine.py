@@ -18,7 +18,8 @@ __all__ = ["refine", "refine_with_parents", "refine_arrays", "as_count", "split_
 
 
 def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
-           marked: ArrayLike | None = None, *, strict: bool = True) -> Mesh:
+           marked: ArrayLike | None = None, *, strict: bool = True, device: str = "cpu"
+           ) -> Mesh:
     """Refine every triangle of ``mesh`` ``levels`` times with ``scheme``.
 
     Parameters
@@ -37,6 +38,9 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
         Uniform refinement only: ``False`` returns children that rounding the new points to
         float64 flattened or inverted instead of raising (for studies of that effect,
         ``docs/robustness.md``); local refinement always checks.
+    device : {"cpu", "cuda"}
+        ``"cuda"``: uniform refinement on the GPU, the same mesh bit for bit
+        (:mod:`qdrefine.gpu`, ``pip install 'qdrefine[gpu]'``; copies both ways included).
 
     Raises
     ------
@@ -63,6 +67,14 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     >>> fine.n_triangles == examples.plate_with_hole().n_triangles * 49
     True
     """
+    if device != "cpu":
+        if device != "cuda":
+            raise ValueError(f"unknown device {device!r}; choose 'cpu' or 'cuda'")
+        if marked is not None:
+            raise ValueError("local refinement (marked) runs on the CPU only")
+        from .gpu import refine_mesh
+
+        return refine_mesh(mesh, scheme, levels, strict)
     if marked is not None:
         return refine_with_parents(mesh, scheme, levels, marked)[0]
     return _refine_uniform(mesh, get_scheme(scheme), as_count(levels, "levels"), strict)

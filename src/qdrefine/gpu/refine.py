@@ -1,0 +1,377 @@
+"""Uniform refinement on a CUDA device: the CPU's three passes as numba-cuda kernels, the
+arrays staying on the device from one level to the next.
+
+Per level: the edge numbering (:mod:`qdrefine.gpu.numbering`), the new points and the
+decision and emission (:mod:`qdrefine.gpu.kernels`). Every decision is exact and made on
+the device: the emission kernel runs the float filter and the error-free stage 2; the few
+triangles some sign of which needs Shewchuk's expansions (none on grids; near-ties whose
+coordinate differences are not exact in float64) are listed and decided by a second
+kernel with a per-thread work buffer. The rounding check of ``strict`` counts the suspects
+on the device and, only if there are any (almost never), runs
+:func:`qdrefine.refine.check_rounding` on host copies.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import cuda
+from numba.core import config
+from numpy.typing import NDArray
+
+from ..kernels import _frame_tables
+from ..memory import MEMORY_LIMIT_VARIABLE, memory_needed
+from ..mesh import Mesh, index_dtype
+from ..predicates import COORDINATE_RANGE, check_coordinates, factor_forms
+from ..refine import as_count, check_rounding
+from ..schemes import Scheme, get_scheme
+from . import kernels as k
+from .numbering import THREADS, blocks, sort_edges
+
+__all__ = ["DeviceMesh", "pass_times", "refine_device", "refine_mesh", "require_gpu"]
+
+
+class InputError(ValueError):
+    """Bad input found while refining (reported without the ``level N:`` prefix)."""
+
+
+@dataclass(frozen=True)
+class DeviceMesh:
+    """A refined mesh on the device (arrays as described in :func:`qdrefine.refine`).
+
+    Attributes
+    ----------
+    points : (N', 2) float64
+    triangles : (M', 3) int32 while the points fit, int64 beyond
+    cell_tags : (M',) int64 or None
+    edges : (K', 2), dtype of ``triangles``, or None
+    edge_tags : (K',) int64 or None
+    exact_stage : tuple of int
+        Per level, the triangles some sign of which needed the exact stage (Shewchuk's
+        expansions, run on the device by a second kernel; 0 on grids and most meshes).
+    """
+
+    points: object
+    triangles: object
+    cell_tags: object = None
+    edges: object = None
+    edge_tags: object = None
+    exact_stage: tuple[int, ...] = ()
+
+
+def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int = 1, *,
+                  cell_tags=None, edges=None, edge_tags=None, strict: bool = True
+                  ) -> DeviceMesh:
+    """Refine every triangle ``levels`` times with ``scheme`` on the CUDA device.
+
+    Parameters
+    ----------
+    points : (N, 2) float64
+    triangles : (M, 3) int32 or int64
+        Counter-clockwise, as in a :class:`qdrefine.Mesh`. Checked on the device: shapes,
+        dtypes, the index range, the coordinates (finite, 0 or in
+        :data:`qdrefine.predicates.COORDINATE_RANGE`) and the orientation (exact); not
+        checked: conformity, duplicate points, folds (validate with ``Mesh`` on the host).
+    cell_tags : (M,) int64, optional
+    edges : (K, 2) int and edge_tags : (K,) int64, optional
+        Tagged edges, each an edge of some triangle (checked).
+    scheme, levels, strict
+        As in :func:`qdrefine.refine`.
+
+    Every array may be on the device (anything with ``__cuda_array_interface__``: numba
+    device arrays, CuPy, PyTorch; or a CUDA DLPack producer, read through CuPy) or on the
+    host (copied to the device first).
+
+    Returns
+    -------
+    DeviceMesh
+        Device arrays equal, bit for bit, to :func:`qdrefine.refine`'s on the host: CuPy
+        arrays when ``points`` is one, numba device arrays otherwise (both export
+        ``__cuda_array_interface__``, so CuPy, PyTorch or JAX wrap them without a copy).
+
+    Raises
+    ------
+    MemoryError
+        When the work would not fit in the device's free memory.
+    ValueError
+        On bad shapes, dtypes or indices, and as :func:`qdrefine.refine` with ``strict``.
+    """
+    sch = get_scheme(scheme)
+    levels = as_count(levels, "levels")
+    require_gpu()
+    like_cupy = type(points).__module__.split(".")[0] == "cupy"
+    pts = _device(points, "points", (np.float64,), 2)
+    tri = _device(triangles, "triangles", (np.int32, np.int64), 3)
+    n, m = pts.shape[0], tri.shape[0]
+    _check_indices(tri, n, "triangles")
+    tags = None if cell_tags is None else _device(cell_tags, "cell_tags", (np.int64,), None)
+    if tags is not None and tags.shape[0] != m:
+        raise ValueError(f"cell_tags must have {m} entries, got {tags.shape[0]}")
+    if (edges is None) != (edge_tags is None):
+        raise ValueError("edges and edge_tags go together")
+    tagged = etags = None
+    if edges is not None:
+        tagged = _device(edges, "edges", (np.int32, np.int64), 2)
+        etags = _device(edge_tags, "edge_tags", (np.int64,), None)
+        if etags.shape[0] != tagged.shape[0]:
+            raise ValueError(f"edge_tags must have {tagged.shape[0]} entries, got "
+                             f"{etags.shape[0]}")
+        _check_indices(tagged, n, "edges")
+    check_device_memory(n, m, sch, levels, tags is not None)
+    if levels:
+        _check_points(pts)
+    tables = _Tables(sch)
+    exact = []
+    for level in range(1, levels + 1):
+        try:
+            pts, tri, tags, tagged, etags, n_hard = _level(pts, tri, tags, tagged, etags,
+                                                           tables, strict, level == 1)
+        except InputError as exc:
+            raise ValueError(str(exc)) from None
+        except ValueError as exc:
+            raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
+        exact.append(n_hard)
+    arrays = (pts, tri, tags, tagged, etags)
+    if like_cupy:
+        import cupy
+
+        arrays = tuple(None if a is None else cupy.asarray(a) for a in arrays)
+    return DeviceMesh(*arrays, exact_stage=tuple(exact))
+
+
+def require_gpu() -> None:
+    """Raise ``RuntimeError`` (one line) when numba finds no CUDA device and the simulator
+    is off."""
+    if not config.ENABLE_CUDASIM and not cuda.is_available():
+        raise RuntimeError("device='cuda': no CUDA GPU is available to numba "
+                           "(numba.cuda.is_available() is False; check the driver, or run "
+                           "under the simulator with NUMBA_ENABLE_CUDASIM=1)")
+
+
+def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
+                strict: bool = True) -> Mesh:
+    """:func:`qdrefine.refine` of a host mesh on the device, copies both ways included."""
+    from ..memory import check_memory
+
+    sch = get_scheme(scheme)
+    levels = as_count(levels, "levels")
+    require_gpu()
+    check_memory(mesh, sch, levels)  # the result comes back to the host
+    out = refine_device(mesh.points, mesh.triangles, sch, levels, cell_tags=mesh.cell_tags,
+                        edges=mesh.edges, edge_tags=mesh.edge_tags, strict=strict)
+    return Mesh._trusted(*(None if a is None else _host(a) for a in
+                           (out.points, out.triangles, out.cell_tags, out.edges,
+                            out.edge_tags)))
+
+
+def check_device_memory(n_points: int, n_triangles: int, scheme: Scheme, levels: int,
+                        tagged: bool) -> None:
+    """Raise ``MemoryError`` when :func:`qdrefine.memory.memory_needed` (an upper bound of
+    the device's work too) exceeds the device's free memory."""
+    if levels == 0:
+        return
+    free = float(cuda.current_context().get_memory_info()[0])
+    need = memory_needed(n_points, n_triangles, scheme, levels, tagged)
+    if need > free:
+        raise MemoryError(f"refining {n_triangles} triangles {levels} level"
+                          f"{'s' if levels != 1 else ''} on the GPU needs about "
+                          f"{need / 2**30:.3g} GiB; {free / 2**30:.3g} GiB free on the device "
+                          f"({MEMORY_LIMIT_VARIABLE} caps host memory only)")
+
+
+class _Tables:
+    """A scheme's tables on the device, uploaded once per call."""
+
+    def __init__(self, sch: Scheme) -> None:
+        if sch.lut.size and sch.lut.min() < 0:
+            raise ValueError("the scheme's lookup table has sign patterns without a row")
+        self.per_edge = sch.stencil.per_edge
+        self.n_children = sch.n_children
+        self.width = 3 * sch.n_children
+        self.forms_host = np.ascontiguousarray(sch.forms, dtype=np.float64)
+        self.factors_host = factor_forms(self.forms_host)
+        self.lut_host = np.ascontiguousarray(sch.lut)
+        self.forms = cuda.to_device(self.forms_host)
+        self.factors = cuda.to_device(self.factors_host)
+        self.lut = cuda.to_device(self.lut_host)
+        self.frames = cuda.to_device(
+            np.ascontiguousarray(_frame_tables(sch.tables, self.per_edge).reshape(-1)))
+
+
+def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: bool,
+           clock=None):
+    """One uniform level on device arrays (:func:`qdrefine.refine.refine_arrays`); with
+    ``check`` (the input level), a triangle that is not counter-clockwise is refused.
+    ``clock(name)``, if given, is called after each pass (:func:`pass_times`)."""
+    n, m = pts.shape[0], tri.shape[0]
+    per = tab.per_edge
+    ed = sort_edges(tri, n)
+    if clock:
+        clock("edge numbering")
+    n_new = n + per * ed.n_edges
+    new_pts = cuda.device_array((n_new, 2), dtype=np.float64)
+    k.new_points[blocks(n), THREADS](pts, ed.starts, ed.first, ed.hi, per, new_pts)
+    if clock:
+        clock("new points")
+    children = cuda.device_array((m * tab.n_children, 3), dtype=index_dtype(n_new))
+    flat = children.reshape(m * tab.width)
+    hard = cuda.device_array(max(m, 1), dtype=np.int64)
+    counters = cuda.to_device(np.zeros(2, dtype=np.int64))
+    if m:
+        k.emit[blocks(m), THREADS](pts, tri, ed.starts, ed.first, ed.hi, per, tab.forms,
+                                   tab.factors, tab.lut, tab.frames, tab.width, flat, hard,
+                                   counters[0:1], counters[1:2], int(check))
+    n_hard, n_suspect = (int(c) for c in counters.copy_to_host())
+    if n_hard:
+        rows = hard[:n_hard]
+        labels = cuda.device_array((n_hard, 4), dtype=np.int64)
+        k.decide_rows[blocks(n_hard), THREADS](pts, tri, rows, tab.forms, tab.factors,
+                                               tab.lut, int(check), labels)
+        if check:
+            _refuse_misoriented(tri, rows.copy_to_host(), labels.copy_to_host())
+        k.emit_rows[blocks(n_hard), THREADS](n, tri, ed.starts, ed.first, ed.hi, per,
+                                             tab.frames, tab.width, rows, labels, flat)
+    if clock:
+        clock("decision and emission")
+    if strict and n_suspect:
+        check_rounding(_host(pts), _host(tri), _host(new_pts), _host(children), per)
+        if clock:
+            clock("rounding check on the host")
+    new_tags = new_edges = new_etags = None
+    if tags is not None:
+        new_tags = cuda.device_array(m * tab.n_children, dtype=np.int64)
+        k.repeat[blocks(new_tags.shape[0]), THREADS](tags, tab.n_children, new_tags)
+    if tagged is not None:
+        n_tagged = tagged.shape[0]
+        new_edges = cuda.device_array((n_tagged * (per + 1), 2), dtype=children.dtype)
+        new_etags = cuda.device_array(n_tagged * (per + 1), dtype=np.int64)
+        if n_tagged:
+            first_bad = cuda.to_device(np.array([n_tagged], dtype=np.int64))
+            k.split_edges[blocks(n_tagged), THREADS](tagged, n, ed.starts, ed.first, ed.hi,
+                                                     per, new_edges, first_bad)
+            r = int(first_bad.copy_to_host()[0])
+            if r < n_tagged:
+                pair = tuple(int(v) for v in tagged[r:r + 1].copy_to_host()[0])
+                raise InputError(f"edge {r} {pair} is not an edge of any triangle")
+            k.repeat[blocks(new_etags.shape[0]), THREADS](etags, per + 1, new_etags)
+    return new_pts, children, new_tags, new_edges, new_etags, n_hard
+
+
+# ----------------------------------------------------------------------------------------
+# arrays in and out
+
+
+def _device(a, name: str, dtypes: tuple, columns: int | None):
+    """``a`` as a C-contiguous numba device array (no copy when it is on the device
+    already), checked for dtype and shape."""
+    if hasattr(a, "copy_to_host") and hasattr(a, "shape"):  # a numba device array
+        d = a
+    elif hasattr(a, "__cuda_array_interface__"):
+        d = cuda.as_cuda_array(a)
+    elif hasattr(a, "__dlpack__") and _dlpack_on_cuda(a):
+        try:
+            import cupy
+        except ImportError:
+            raise ValueError(f"{name}: reading a CUDA DLPack array needs CuPy "
+                             "(pip install 'qdrefine[gpu]')") from None
+        d = cuda.as_cuda_array(cupy.from_dlpack(a))
+    else:
+        host = np.asarray(a)
+        if host.dtype not in dtypes and host.dtype.kind in "iuf" and host.size:
+            host = host.astype(dtypes[0])
+        d = cuda.to_device(np.ascontiguousarray(host))
+    if d.dtype not in dtypes:
+        raise ValueError(f"{name} must have dtype {' or '.join(np.dtype(t).name for t in dtypes)}"
+                         f" on the device, got {d.dtype}")
+    want = 1 if columns is None else 2
+    if len(d.shape) != want or (columns is not None and d.shape[1] != columns):
+        shape = "(n,)" if columns is None else f"(n, {columns})"
+        raise ValueError(f"{name} must have shape {shape}, got {tuple(d.shape)}")
+    if not d.is_c_contiguous():
+        raise ValueError(f"{name} must be C-contiguous on the device")
+    return d
+
+
+def _dlpack_on_cuda(a) -> bool:
+    try:
+        return int(a.__dlpack_device__()[0]) in (2, 3, 13)  # kDLCUDA, pinned, managed
+    except (AttributeError, TypeError, ValueError):
+        return False
+
+
+def _host(a) -> NDArray:
+    return a.copy_to_host() if hasattr(a, "copy_to_host") else np.asarray(a.get())
+
+
+def pass_times(points, triangles, scheme: str | Scheme = "7t-qd", strict: bool = True
+               ) -> dict[str, float]:
+    """Seconds of each pass of one level of :func:`refine_device` on device arrays (the
+    device synchronized at each pass boundary; for benchmarks)."""
+    import time
+
+    pts = _device(points, "points", (np.float64,), 2)
+    tri = _device(triangles, "triangles", (np.int32, np.int64), 3)
+    times: dict[str, float] = {}
+    cuda.synchronize()
+    last = [time.perf_counter()]
+
+    def clock(name: str) -> None:
+        cuda.synchronize()
+        now = time.perf_counter()
+        times[name] = times.get(name, 0.0) + now - last[0]
+        last[0] = now
+
+    _level(pts, tri, None, None, None, _Tables(get_scheme(scheme)), strict, False, clock)
+    return times
+
+
+def _refuse_misoriented(tri, rows: NDArray, labels: NDArray) -> None:
+    """``ValueError`` naming the least triangle :func:`kernels.decide_rows` found zero-area
+    or clockwise (the wording of :class:`qdrefine.Mesh`)."""
+    bad = labels[:, 3] < 0
+    if not bad.any():
+        return
+    t = int(rows[bad].min())
+    corners = tuple(int(v) for v in tri[t:t + 1].copy_to_host()[0])
+    if labels[rows == t][0, 3] == -1:
+        raise InputError(f"triangle {t} {corners} has zero area")
+    raise InputError(f"triangle {t} {corners} is clockwise; triangles must be "
+                     "counter-clockwise with positive area")
+
+
+def _check_points(points) -> None:
+    """:func:`qdrefine.predicates.check_coordinates` on the device: ``ValueError`` naming
+    the first bad point."""
+    n = points.shape[0]
+    if n == 0:
+        return
+    first_bad = cuda.to_device(np.array([n], dtype=np.int64))
+    lo, hi = COORDINATE_RANGE
+    k.check_points[blocks(n), THREADS](points, lo, hi, first_bad)
+    i = int(first_bad.copy_to_host()[0])
+    if i < n:
+        try:
+            check_coordinates(points[i:i + 1].copy_to_host())
+        except ValueError as exc:
+            raise ValueError(str(exc).replace("point 0 ", f"point {i} ", 1)) from None
+
+
+def _check_indices(index, n: int, name: str) -> None:
+    """``ValueError`` when a device index array has an entry outside ``[0, n)``."""
+    if index.shape[0] == 0:
+        return
+    bounds = cuda.to_device(np.array([np.iinfo(np.int64).max, -1], dtype=np.int64))
+    _index_range[blocks(index.shape[0]), THREADS](index, bounds)
+    lo, hi = (int(b) for b in bounds.copy_to_host())
+    if lo < 0 or hi >= n:
+        raise ValueError(f"{name}: vertex indices must be in [0, {n}), got [{lo}, {hi}]")
+
+
+@cuda.jit
+def _index_range(index, bounds):
+    r = cuda.grid(1)
+    if r < index.shape[0]:
+        for i in range(index.shape[1]):
+            cuda.atomic.min(bounds, 0, index[r, i])
+            cuda.atomic.max(bounds, 1, index[r, i])

@@ -1,0 +1,232 @@
+"""GPU refinement against the CPU, bit for bit: run by tests/test_gpu.py in a subprocess,
+under numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1``, small meshes) and on a real GPU
+where there is one. Not collected directly (the name does not start with ``test_``): the
+environment must be set before ``numba.cuda`` is first imported."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from meshes import jittered_grid
+from qdrefine import Mesh, examples, read, refine, scheme_names
+from qdrefine.gpu import refine_device, refine_mesh
+from qdrefine.gpu.numbering import exclusive_scan
+from qdrefine.predicates import orient_signs
+from shapes import triangles as triangle_strategy
+
+SCHEMES = scheme_names()
+FIELDS = ("points", "triangles", "cell_tags", "edges", "edge_tags")
+
+
+def assert_identical(cpu: Mesh, gpu: Mesh) -> None:
+    """Same arrays, dtypes and values (``array_equal`` on floats is bitwise for non-NaN)."""
+    for name in FIELDS:
+        a, b = getattr(cpu, name), getattr(gpu, name)
+        assert (a is None) == (b is None), name
+        if a is not None:
+            assert a.dtype == b.dtype, (name, a.dtype, b.dtype)
+            assert a.shape == b.shape, (name, a.shape, b.shape)
+            assert np.array_equal(a.view(np.uint8), b.view(np.uint8)), name
+
+
+def outcome(f):
+    """The result of ``f()``, or the message of the ``ValueError`` it raised."""
+    try:
+        return f()
+    except ValueError as exc:
+        return str(exc)
+
+
+def same_outcome(cpu, gpu) -> None:
+    assert type(cpu) is type(gpu), (cpu, gpu)
+    if isinstance(cpu, str):
+        assert cpu == gpu
+    else:
+        assert_identical(cpu, gpu)
+
+
+@settings(max_examples=10, deadline=None)
+@given(n=st.integers(1, 4), seed=st.integers(0, 10**6), shear=st.sampled_from([0, 0.5, 40.0]),
+       shuffle=st.booleans(), scheme=st.sampled_from(SCHEMES), levels=st.integers(1, 2))
+def test_random_tagged_meshes(n, seed, shear, shuffle, scheme, levels):
+    """Jittered grids (renumbered and reordered at random, sheared into needles), with cell
+    and edge tags."""
+    mesh = jittered_grid(n, seed, shear, shuffle)
+    same_outcome(outcome(lambda: refine(mesh, scheme, levels)),
+                 outcome(lambda: refine_mesh(mesh, scheme, levels)))
+
+
+@settings(max_examples=25, deadline=None)
+@given(tri=triangle_strategy(), scheme=st.sampled_from(SCHEMES), levels=st.integers(1, 2),
+       strict=st.booleans())
+def test_single_triangles_with_ties_and_near_ties(tri, scheme, levels, strict):
+    """Exact ties, near-ties, tiny and huge triangles: every stage of the predicates, and the
+    rounding check's refusals (same message)."""
+    if orient_signs(tri, np.array([[0, 1, 2]]))[0] < 0:
+        tri = tri[::-1].copy()
+    mesh = Mesh(tri, [[0, 1, 2]])
+    same_outcome(outcome(lambda: refine(mesh, scheme, levels, strict=strict)),
+                 outcome(lambda: refine_mesh(mesh, scheme, levels, strict=strict)))
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_structured_and_unstructured_examples(scheme):
+    """The right isosceles grid (every triangle an exact tie, decided by stage 2 at the
+    first level; at the second, 7T-LE and 7T-D need the exact stage for some children) and
+    the plate with a hole (tags, curved boundary)."""
+    for mesh in (examples.square(2), examples.plate_with_hole(8, 2)):
+        out = refine_device(mesh.points, mesh.triangles, scheme, 2, cell_tags=mesh.cell_tags,
+                            edges=mesh.edges, edge_tags=mesh.edge_tags)
+        if mesh.n_points == 9:  # the grid's differences are exact: stage 2 decides its ties
+            assert out.exact_stage[0] == 0
+        assert_identical(refine(mesh, scheme, 2), Mesh._trusted(
+            *(None if a is None else a.copy_to_host() for a in
+              (out.points, out.triangles, out.cell_tags, out.edges, out.edge_tags))))
+
+
+def test_a_gmsh_made_mesh():
+    """Gmsh's unstructured, near-equilateral triangles with two tagged regions and tagged
+    boundary edges (read through meshio)."""
+    mesh = read(Path(__file__).parent / "data" / "two_regions_22.msh")
+    for scheme in SCHEMES:
+        assert_identical(refine(mesh, scheme), refine_mesh(mesh, scheme))
+
+
+def test_near_ties_with_inexact_differences_go_to_the_exact_stage():
+    """|OM| and |ON| nearly tie and the coordinate differences are not exact: neither the
+    filter nor stage 2 proves the sign, the expansions on the device do, and the result is
+    the CPU's."""
+    mesh = Mesh(np.array([[0.1, 0.1], [0.7, 0.1], [0.4, 0.9]]), [[0, 1, 2]])
+    for scheme in SCHEMES:
+        out = refine_device(mesh.points, mesh.triangles, scheme, 2)
+        assert out.exact_stage[0] == 1
+        cpu = refine(mesh, scheme, 2)
+        assert np.array_equal(out.points.copy_to_host(), cpu.points)
+        assert np.array_equal(out.triangles.copy_to_host(), cpu.triangles)
+
+
+def test_high_degree_vertices():
+    """A fan of 40 triangles: the centre's run of 40 half-edges is heap-sorted."""
+    k = 40
+    angles = 2 * np.pi * np.arange(k) / k
+    points = np.concatenate([[[0.0, 0.0]], np.stack([np.cos(angles), np.sin(angles)], 1)])
+    ring = np.arange(1, k + 1)
+    triangles = np.stack([np.zeros(k, dtype=int), ring, np.roll(ring, -1)], 1)
+    mesh = Mesh(points, triangles)
+    for scheme in ("7t-qd", "4t-red"):
+        assert_identical(refine(mesh, scheme), refine_mesh(mesh, scheme))
+
+
+def test_device_arrays_in_device_arrays_out():
+    from numba import cuda
+
+    mesh = jittered_grid(3, 7, 0.5, True)
+    out = refine_device(cuda.to_device(mesh.points), cuda.to_device(mesh.triangles), "7t-qd",
+                        cell_tags=cuda.to_device(mesh.cell_tags),
+                        edges=cuda.to_device(mesh.edges),
+                        edge_tags=cuda.to_device(mesh.edge_tags))
+    cpu = refine(mesh, "7t-qd")
+    for name in FIELDS:
+        a = getattr(out, name)
+        assert hasattr(a, "copy_to_host")  # still on the device
+        assert np.array_equal(a.copy_to_host(), getattr(cpu, name))
+    assert_identical(cpu, refine(mesh, "7t-qd", device="cuda"))
+    wide = refine_device(cuda.to_device(mesh.points),
+                         cuda.to_device(mesh.triangles.astype(np.int64)), "7t-qd", 2)
+    two = refine(mesh, "7t-qd", 2)
+    assert wide.triangles.dtype == two.triangles.dtype  # int32: the points fit
+    assert np.array_equal(wide.triangles.copy_to_host(), two.triangles)
+    same = refine_device(mesh.points, mesh.triangles, "7t-qd", 0)
+    assert np.array_equal(same.points.copy_to_host(), mesh.points)
+    assert np.array_equal(same.triangles.copy_to_host(), mesh.triangles)
+
+
+def test_too_little_device_memory_is_refused_before_any_work(monkeypatch):
+    import qdrefine.gpu.refine as gpu_refine
+    from qdrefine.memory import memory_needed
+
+    mesh = examples.square(2)
+    need = memory_needed(mesh.n_points, mesh.n_triangles, "7t-qd", 3)
+
+    class Context:
+        def get_memory_info(self):
+            return need - 1, 2 * need
+
+    monkeypatch.setattr(gpu_refine.cuda, "current_context", lambda: Context())
+    with pytest.raises(MemoryError, match="on the GPU needs about .* GiB free on the device"):
+        refine_device(mesh.points, mesh.triangles, "7t-qd", 3)
+    monkeypatch.undo()
+    assert refine_device(mesh.points, mesh.triangles, "4t-red", 1).triangles.shape[0] == 32
+
+
+@pytest.mark.parametrize("size", [1, 5000, 40000])
+def test_exclusive_scan(size):
+    from numba import cuda
+
+    values = np.random.default_rng(size).integers(0, 7, size).astype(np.int32)
+    expect = np.concatenate([[0], np.cumsum(values)])
+    assert np.array_equal(exclusive_scan(cuda.to_device(values)).copy_to_host(), expect)
+
+
+def test_bad_input_is_refused_with_one_line():
+    from numba import cuda
+
+    mesh = examples.square(1)
+    cases = [
+        (lambda: refine_device(cuda.to_device(mesh.points.astype(np.float32)), mesh.triangles),
+         "dtype"),
+        (lambda: refine_device(mesh.points[:, :1], mesh.triangles), "shape"),
+        (lambda: refine_device(mesh.points, mesh.triangles + 3), r"\[0, 4\)"),
+        (lambda: refine_device(mesh.points, mesh.triangles, levels=-1), "levels"),
+        (lambda: refine_device(mesh.points, mesh.triangles, cell_tags=np.zeros(5, np.int64)),
+         "cell_tags"),
+        (lambda: refine(mesh, device="tpu"), "unknown device"),
+        (lambda: refine(mesh, marked=[0], device="cuda"), "CPU only"),
+    ]
+    for call, match in cases:
+        with pytest.raises(ValueError, match=match) as info:
+            call()
+        assert "\n" not in str(info.value)
+
+
+def test_input_the_mesh_would_refuse_is_refused_on_the_device_with_its_message():
+    """Clockwise and zero-area triangles (exact orientation: a near-collinear triangle that
+    only the exact stage decides) and bad coordinates, in device arrays."""
+    from numba import cuda
+
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.5, 1.0],
+                       [1.5, 1.0]])
+    cases = [
+        ([[0, 1, 3], [0, 2, 1]], points),  # triangle 1 clockwise
+        ([[0, 1, 3], [2, 4, 3]], points),  # triangle 1: zero area
+        ([[0, 1, 2]], np.array([[0.0, 0.0], [1.0, 0.0], [0.0, np.inf]])),
+        ([[0, 1, 2]], np.array([[0.0, 0.0], [1.0, 0.0], [1e-200, 1.0]])),
+    ]
+    for tris, pts in cases:
+        tris = np.array(tris)
+        with pytest.raises(ValueError) as host:
+            Mesh(pts, tris)
+        with pytest.raises(ValueError) as device:
+            refine_device(cuda.to_device(pts), cuda.to_device(tris), levels=2)
+        assert str(device.value) == str(host.value)
+    edges, edge_tags = np.array([[0, 1], [0, 2], [1, 3]]), np.array([1, 2, 3])
+    with pytest.raises(ValueError) as host:
+        Mesh(points, [[0, 1, 3]], edges=edges, edge_tags=edge_tags)
+    with pytest.raises(ValueError) as device:
+        refine_device(points, [[0, 1, 3]], edges=edges, edge_tags=edge_tags, levels=2)
+    assert str(device.value) == str(host.value)
+    # nearly collinear: the float filter cannot tell, the exact stage can
+    thin = np.array([[0.1, 0.1], [0.7, 0.7], [0.3, 0.30000000000000004]])
+    for tris in ([[0, 1, 2]], [[0, 2, 1]]):
+        host = outcome(lambda t=tris: refine(Mesh(thin, t), "4t-red"))
+        device = outcome(lambda t=tris: refine_mesh(Mesh._trusted(thin, np.array(t)), "4t-red"))
+        if isinstance(host, str):
+            assert host == device
+        else:
+            assert_identical(host, device)
+    assert refine_device(thin, [[0, 1, 2]], "4t-red", strict=False).exact_stage == (1,)
