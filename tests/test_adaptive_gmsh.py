@@ -16,11 +16,11 @@ CYCLES = 12
 # (mesh, mark rule): corner singularities, a front moving across the domain, random marks
 CASES = {
     "l_shape/corner": ("l_shape", lambda m, c: mark_point(m, (0.0, 0.0))),
-    "l_shape/random": ("l_shape", lambda m, c: mark_random(m, 0.03, seed=c)),
+    "l_shape/random": ("l_shape", lambda m, c: mark_random(m, 0.01, seed=c)),
     "plate_with_hole/front": ("plate_with_hole",
                               lambda m, c: mark_circle(m, (0, 0), 0.22 + 0.02 * c, 0.04)),
     "step/corner": ("step", lambda m, c: mark_point(m, (1.0, 0.5))),
-    "graded/random": ("graded", lambda m, c: mark_random(m, 0.03, seed=c)),
+    "graded/random": ("graded", lambda m, c: mark_random(m, 0.01, seed=c)),
     "graded/front": ("graded", lambda m, c: mark_circle(m, (0.5, 0.0), 0.1 + 0.05 * c, 0.03)),
 }
 

@@ -24,6 +24,9 @@ from .step import Step, step
 
 #: Below this many triangles the step runs on the whole mesh.
 WHOLE_BELOW = 20_000
+#: A window holding more than this fraction of the mesh is given up for the whole mesh
+#: (scattered marks: every retry would cost nearly a whole step).
+WHOLE_ABOVE = 0.3
 
 
 def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_],
@@ -38,7 +41,7 @@ def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.
     window = _grown(mesh.triangles, start, tris_of, seed, 2)
     while True:
         window = _whole_families(window, fam)
-        if window.all():
+        if window.sum() > WHOLE_ABOVE * m:
             return step(mesh, marked, fam_marked, sch, fam)
         res, verts = _sub_step(mesh, window, marked, fam_marked, sch, fam)
         to_global = np.concatenate([verts, mesh.n_points
@@ -46,7 +49,7 @@ def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.
         rim = _split_rim(mesh.triangles, start, tris_of, window, to_global, res)
         if not rim.any():
             return _stitched(mesh, window, verts, to_global, res, fam)
-        window = _grown(mesh.triangles, start, tris_of, window | rim, 2)
+        window |= _grown(mesh.triangles, start, tris_of, rim, 2)
 
 
 @njit(cache=True)

@@ -1,0 +1,114 @@
+"""Cost of one adaptive step on a large Gmsh mesh, against uniform refinement of the same
+mesh and scikit-fem's ``MeshTri.refined(marked)``, in the same run.
+
+The mesh is Gmsh's Frontal-Delaunay mesh of the L-shape ``[-1, 1]^2 minus (0, 1]^2`` with
+about 0.9 M triangles (made with the Gmsh SDK, ``pip install gmsh``, cached under
+``benchmarks/.cache/``). Two markings of 1% of the triangles:
+
+* ``clustered``: the 1% nearest the re-entrant corner (what an error estimator marks on a
+  singular problem);
+* ``scattered``: 1% picked by :func:`qdrefine.marking.mark_random` all over the mesh (the
+  worst case for locality: every mark needs its own closure and transitions).
+
+Each time is the best of ``--repeat`` runs (numba on all threads). Usage::
+
+    python benchmarks/adaptive_bench.py [--repeat 3] [--json benchmarks/results/F.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+import qdrefine
+from qdrefine import examples
+from qdrefine.marking import mark_random
+
+CACHE = Path(__file__).parent / ".cache" / "l_shape_900k.npz"
+
+
+def big_l_shape() -> qdrefine.Mesh:
+    if not CACHE.exists():
+        import gmsh
+
+        gmsh.initialize(interruptible=False)
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("l")
+        g = gmsh.model.geo
+        h = 0.25 * np.sqrt(126 / 980000)
+        pts = [g.addPoint(x, y, 0, h) for x, y in
+               [(-1, -1), (1, -1), (1, 0), (0, 0), (0, 1), (-1, 1)]]
+        lines = [g.addLine(pts[i], pts[(i + 1) % 6]) for i in range(6)]
+        g.addPlaneSurface([g.addCurveLoop(lines)])
+        g.synchronize()
+        gmsh.model.mesh.generate(2)
+        _, coords, _ = gmsh.model.mesh.getNodes()
+        _, _, nodes = gmsh.model.mesh.getElements(2)
+        gmsh.finalize()
+        CACHE.parent.mkdir(exist_ok=True)
+        np.savez(CACHE, points=coords.reshape(-1, 3)[:, :2],
+                 triangles=nodes[0].reshape(-1, 3).astype(np.int64) - 1)
+    data = np.load(CACHE)
+    return qdrefine.Mesh(data["points"], data["triangles"])
+
+
+def best(f, repeat):
+    t_best, out = np.inf, None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = f()
+        t_best = min(t_best, time.perf_counter() - t)
+    return t_best, out
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--json", type=Path, default=None)
+    args = parser.parse_args(argv)
+    import skfem
+
+    mesh = big_l_shape()
+    centroids = mesh.points[mesh.triangles].mean(axis=1)
+    k = mesh.n_triangles // 100
+    clustered = np.zeros(mesh.n_triangles, dtype=bool)
+    clustered[np.argsort(np.linalg.norm(centroids, axis=1), kind="stable")[:k]] = True
+    marks = {"clustered": clustered, "scattered": mark_random(mesh, 0.01)}
+    qdrefine.refine(examples.square(2), marked=[0])  # compile outside the timings
+    t_uniform, fine = best(lambda: qdrefine.refine(mesh, "7t-qd"), args.repeat)
+    sk = skfem.MeshTri(np.ascontiguousarray(mesh.points.T),
+                       np.ascontiguousarray(mesh.triangles.T, dtype=np.int64))
+    result = {"date": datetime.date.today().isoformat(), "machine": platform.platform(),
+              "cpus": os.cpu_count(), "load_average": os.getloadavg(),
+              "triangles": mesh.n_triangles, "uniform_seconds": t_uniform,
+              "uniform_output_triangles": fine.n_triangles, "cases": {}}
+    print(f"mesh: {mesh.n_triangles} triangles; uniform 7t-qd level: {t_uniform:.3f} s")
+    for name, marked in marks.items():
+        t_step, out = best(lambda m=marked: qdrefine.refine(mesh, "7t-qd", marked=m),
+                           args.repeat)
+        ids = np.flatnonzero(marked)
+        t_sk, sk_out = best(lambda i=ids: sk.refined(i), args.repeat)
+        row = {"marked": int(marked.sum()), "step_seconds": t_step,
+               "added": out.n_triangles - mesh.n_triangles,
+               "step_over_uniform": t_step / t_uniform, "scikit_fem_seconds": t_sk,
+               "scikit_fem_added": int(sk_out.t.shape[1] - mesh.n_triangles),
+               "scikit_fem_over_step": t_sk / t_step}
+        result["cases"][name] = row
+        print(f"{name}: {row['marked']} marked, step {t_step:.3f} s "
+              f"({row['step_over_uniform']:.2f} x uniform), scikit-fem {t_sk:.3f} s "
+              f"({row['scikit_fem_over_step']:.1f} x the step)")
+    path = args.json or (Path(__file__).parent / "results"
+                         / f"adaptive-bench-{result['date']}.json")
+    path.write_text(json.dumps(result, indent=1))
+    print("wrote", path)
+
+
+if __name__ == "__main__":
+    main()
