@@ -242,3 +242,145 @@ def test_a_failed_refinement_keeps_the_old_target(tmp_path, client):
         refine_store(bad, tmp_path / "out.zarr", client=client)
     assert_identical(mesh, "7t-qd", 0, store.to_mesh(tmp_path / "out.zarr"))
     assert leftovers(tmp_path) == ["bad.zarr", "in.zarr", "out.zarr"]
+
+
+# fault injection ----------------------------------------------------------------------------
+# Each run either completes with the identical output or fails with one clear error, leaving
+# the old target as it was and no temporaries.
+
+
+@pytest.fixture(scope="module")
+def process_client():
+    """Two single-thread worker processes under nannies (a killed worker is restarted)."""
+    c = local_client(n_workers=2, processes=True, dashboard_address=":0")
+    yield c
+    c.close()
+
+
+class KillOnce:
+    """A worker plugin: the first worker to start a task whose key contains ``name`` kills
+    its own process with SIGKILL (once per ``marker`` file)."""
+
+    def __init__(self, name: str, marker: str) -> None:
+        self.name, self.marker = name, marker
+
+    def setup(self, worker):
+        self.worker = worker
+
+    def transition(self, key, start, finish, **kwargs):
+        import signal
+
+        if finish != "executing" or self.name not in str(key):
+            return
+        try:
+            os.close(os.open(self.marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+        except FileExistsError:
+            return
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    def teardown(self, worker):
+        pass
+
+
+def outcome_is_clean(run, mesh, levels, tmp_path, old: Mesh) -> str:
+    """``run()``: the new target identical to the in-memory refinement, or a one-line
+    error with the old target kept; never a temporary."""
+    try:
+        run()
+    except (ClusterError, OSError, ValueError) as exc:
+        assert "\n" not in str(exc)
+        assert_identical(old, "7t-qd", 0, store.to_mesh(tmp_path / "out.zarr"))
+        result = "failed"
+    else:
+        assert_identical(mesh, "7t-qd", levels, store.to_mesh(tmp_path / "out.zarr"))
+        result = "completed"
+    assert leftovers(tmp_path) == ["in.zarr", "marker", "out.zarr"]
+    return result
+
+
+@pytest.mark.parametrize("task", ["shuffle-transfer", "_emit_chunk"])
+def test_a_worker_killed_mid_shuffle_or_mid_write(tmp_path, process_client, task):
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    plugin = type("Kill", (KillOnce, WorkerPlugin), {})(task, str(tmp_path / "marker"))
+    mesh = jittered_grid(6, seed=1)
+    old = jittered_grid(2, seed=2)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=16)
+    store.create(tmp_path / "out.zarr", old)
+    process_client.register_plugin(plugin, name=f"kill-{task}")
+    try:
+        outcome_is_clean(lambda: refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr",
+                                              levels=2, client=process_client),
+                         mesh, 2, tmp_path, old)
+    finally:
+        process_client.unregister_worker_plugin(f"kill-{task}")
+    assert (tmp_path / "marker").exists()  # a worker was killed
+
+
+def test_a_full_disk_leaves_the_old_target(tmp_path, client, monkeypatch):
+    import errno
+
+    from zarr.storage import LocalStore
+
+    mesh, old = jittered_grid(4, seed=1), jittered_grid(2, seed=2)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=5)
+    store.create(tmp_path / "out.zarr", old)
+    (tmp_path / "marker").touch()
+    original = LocalStore.set
+
+    async def full(self, key, value):  # the disk fills when the triangles are written
+        if key.startswith("triangles/c"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return await original(self, key, value)
+
+    monkeypatch.setattr(LocalStore, "set", full)
+    with pytest.raises(OSError, match="No space left on device"):
+        refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", client=client)
+    monkeypatch.undo()
+    assert_identical(old, "7t-qd", 0, store.to_mesh(tmp_path / "out.zarr"))
+    assert leftovers(tmp_path) == ["in.zarr", "marker", "out.zarr"]
+
+
+KILLABLE = """
+import sys
+from qdrefine.distributed import local_client, refine_store
+with local_client(n_workers=2, processes=False, dashboard_address=":0") as c:
+    refine_store(sys.argv[1], sys.argv[2], levels=2, client=c)
+"""
+
+
+def _wait_for_temporary(tmp_path: Path, proc, seconds: float = 60.0) -> Path:
+    import time
+
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and proc.poll() is None:
+        found = [p for p in tmp_path.iterdir() if p.name.startswith(".out.zarr~")]
+        if found and (found[0] / "_work").exists():
+            time.sleep(0.5)  # well into the run
+            return found[0]
+        time.sleep(0.05)
+    raise AssertionError(f"the run did not start writing (exit {proc.poll()})")
+
+
+def test_a_killed_client_leaves_garbage_the_next_run_removes(tmp_path, client):
+    import signal
+    import subprocess
+    import sys
+
+    mesh, old = jittered_grid(30, seed=1), jittered_grid(2, seed=2)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=400)
+    store.create(tmp_path / "out.zarr", old)
+    proc = subprocess.Popen([sys.executable, "-c", KILLABLE, str(tmp_path / "in.zarr"),
+                             str(tmp_path / "out.zarr")], env={**os.environ},
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    temporary = _wait_for_temporary(tmp_path, proc)
+    proc.send_signal(signal.SIGKILL)  # what SLURM and Kubernetes send last
+    proc.wait(timeout=30)
+    assert temporary.exists()
+    assert not store.is_store(temporary)  # never mistaken for a mesh
+    assert_identical(old, "7t-qd", 0, store.to_mesh(tmp_path / "out.zarr"))
+    small = jittered_grid(2, seed=4)
+    store.create(tmp_path / "in.zarr", small, chunk_size=3)
+    refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", client=client)  # the next run
+    assert_identical(small, "7t-qd", 1, store.to_mesh(tmp_path / "out.zarr"))
+    assert leftovers(tmp_path) == ["in.zarr", "out.zarr"]

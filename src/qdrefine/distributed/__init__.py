@@ -102,7 +102,8 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
     address : str, optional
         Connect to the scheduler at this address (``tcp://host:8786``) instead.
         With neither: a local cluster sized to the machine (:func:`local_client`), closed
-        at the end.
+        at the end; its workers are threads of this process when a store is at a
+        ``memory://`` URL (which other processes cannot see).
     progress : callable, optional
         Called as ``progress(text, done, total)`` when a stage starts (``done`` stages of
         ``total`` finished), and once at the end with ``done == total``. The first call
@@ -144,7 +145,8 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
                          f"handles at most {MAX_POINTS} (int64 edge keys)")
     timeouts = {"pause_timeout": float(pause_timeout), "stall_timeout": float(stall_timeout)}
     report = Reporter(progress, 1 + (3 + 2 * (levels - 1) if levels else 1))
-    with sigterm_as_interrupt(), connect(client, address) as (cl, dashboard), \
+    in_process = any(u.startswith("memory://") for u in (src.path, url))
+    with sigterm_as_interrupt(), connect(client, address, in_process) as (cl, dashboard), \
             quiet_shuffle_logs(), mesh_store.writing(url) as out:
         report.message(f"dask dashboard: {dashboard}" if dashboard else "dask cluster ready")
         n_workers = check_workers(cl, src.path, url, src.chunk_size)

@@ -72,9 +72,11 @@ def _has_dashboard() -> bool:
 
 
 @contextlib.contextmanager
-def connect(client: Client | None, address: str | None) -> Iterator[tuple[Client, str | None]]:
+def connect(client: Client | None, address: str | None, in_process: bool = False
+            ) -> Iterator[tuple[Client, str | None]]:
     """``(client, dashboard address)``: ``client``, a new client of the scheduler at
-    ``address``, or of a new local cluster (closed at the end)."""
+    ``address``, or of a new local cluster (closed at the end), of threads in this process
+    when ``in_process`` (for ``memory://`` stores, which only this process sees)."""
     if client is not None and address is not None:
         raise ValueError("give a client or a scheduler address, not both")
     if client is not None:
@@ -88,7 +90,7 @@ def connect(client: Client | None, address: str | None) -> Iterator[tuple[Client
         except OSError as exc:
             raise OSError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
     else:
-        own = local_client()
+        own = local_client(processes=not in_process)
     try:
         yield own, _dashboard(own)
     finally:
