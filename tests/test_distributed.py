@@ -298,23 +298,59 @@ def outcome_is_clean(run, mesh, levels, tmp_path, old: Mesh) -> str:
     return result
 
 
-@pytest.mark.parametrize("task", ["shuffle-transfer", "_emit_chunk"])
-def test_a_worker_killed_mid_shuffle_or_mid_write(tmp_path, process_client, task):
+def _allow_failures(client, n: int) -> int:
+    def set_allowed(dask_scheduler, n):
+        before, dask_scheduler.allowed_failures = dask_scheduler.allowed_failures, n
+        return before
+
+    return client.run_on_scheduler(set_allowed, n=n)
+
+
+@pytest.mark.parametrize("task,retries,expected", [
+    ("shuffle-transfer", None, "completed"),  # Dask reruns the shuffle without the worker
+    ("_emit_chunk", None, "completed"),       # the chunk is written again, elsewhere
+    ("_emit_chunk", 0, "failed"),             # KilledWorker at once: one line, old target
+])
+def test_a_worker_killed_mid_shuffle_or_mid_write(tmp_path, process_client, task, retries,
+                                                  expected):
     from distributed.diagnostics.plugin import WorkerPlugin
 
     plugin = type("Kill", (KillOnce, WorkerPlugin), {})(task, str(tmp_path / "marker"))
-    mesh = jittered_grid(6, seed=1)
+    mesh = jittered_grid(3, seed=1)
     old = jittered_grid(2, seed=2)
-    store.create(tmp_path / "in.zarr", mesh, chunk_size=16)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=6)
     store.create(tmp_path / "out.zarr", old)
     process_client.register_plugin(plugin, name=f"kill-{task}")
+    before = _allow_failures(process_client, retries) if retries is not None else None
     try:
-        outcome_is_clean(lambda: refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr",
-                                              levels=2, client=process_client),
-                         mesh, 2, tmp_path, old)
+        result = outcome_is_clean(lambda: refine_store(tmp_path / "in.zarr",
+                                                       tmp_path / "out.zarr", levels=1,
+                                                       client=process_client),
+                                  mesh, 1, tmp_path, old)
     finally:
         process_client.unregister_worker_plugin(f"kill-{task}")
+        if before is not None:
+            _allow_failures(process_client, before)
     assert (tmp_path / "marker").exists()  # a worker was killed
+    assert result == expected
+
+
+def test_killed_worker_is_one_clear_line(tmp_path, process_client):
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    plugin = type("Kill", (KillOnce, WorkerPlugin), {})("_emit_chunk", str(tmp_path / "m"))
+    store.create(tmp_path / "in.zarr", jittered_grid(3, seed=1), chunk_size=8)
+    process_client.register_plugin(plugin, name="kill-once")
+    before = _allow_failures(process_client, 0)
+    try:
+        with pytest.raises(ClusterError, match=r"^a Dask worker died while running .* \(killed, "
+                                               r"or out of memory\); the run was stopped and "
+                                               r"its temporaries removed$"):
+            refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", client=process_client)
+    finally:
+        process_client.unregister_worker_plugin("kill-once")
+        _allow_failures(process_client, before)
+    assert leftovers(tmp_path) == ["in.zarr", "m"]
 
 
 def test_a_full_disk_leaves_the_old_target(tmp_path, client, monkeypatch):

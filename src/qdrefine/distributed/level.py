@@ -147,9 +147,11 @@ class Level:
             self.report.stage("edge ids in sorted order and new points (range shuffle)")
             numbered, counts = self._edges()
             self.report.stage("emission of the children, written chunk by chunk")
-            self._emit(numbered, counts)
-            for future in numbered:  # the partitions' results are no longer needed
-                future.release()
+            try:
+                self._emit(numbered, counts)
+            finally:  # the partitions' results are no longer needed (nor recomputed)
+                for future in numbered:
+                    future.release()
 
     def _compute(self, tasks: list, keep: bool = False) -> list:
         return cluster.compute(self.client, tasks, keep=keep, **self.timeouts)
