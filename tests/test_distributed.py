@@ -73,6 +73,17 @@ def test_every_scheme_on_many_small_chunks(tmp_path, client, scheme, levels):
     assert done == sorted(done) and calls[-1][1] == calls[-1][2] == 1 + 3 + 2 * (levels - 1)
 
 
+def test_the_shuffle_path_for_many_chunks(tmp_path, client, monkeypatch):
+    # exchanges of more than DIRECT_PIECES pieces go through Dask's P2P shuffle instead
+    from qdrefine.distributed import level
+
+    monkeypatch.setattr(level, "DIRECT_PIECES", 0)
+    mesh = jittered_grid(3, seed=12)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=5)
+    refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", "7t-qd", 2, client=client)
+    assert_identical(mesh, "7t-qd", 2, store.to_mesh(tmp_path / "out.zarr"))
+
+
 def test_four_triangle_scheme(tmp_path, client):
     mesh = examples.plate_with_hole(n_around=6, n_rings=1)  # tagged circle, square, regions
     refine_store(store.create(tmp_path / "in.zarr", mesh, chunk_size=4).path,
@@ -306,14 +317,20 @@ def _allow_failures(client, n: int) -> int:
     return client.run_on_scheduler(set_allowed, n=n)
 
 
-@pytest.mark.parametrize("task,retries,expected", [
-    ("shuffle-transfer", None, "completed"),  # Dask reruns the shuffle without the worker
-    ("_emit_chunk", None, "completed"),       # the chunk is written again, elsewhere
-    ("_emit_chunk", 0, "failed"),             # KilledWorker at once: one line, old target
+@pytest.mark.parametrize("task,shuffle,retries,expected", [
+    ("shuffle-transfer", True, None, "completed"),  # Dask reruns the P2P shuffle
+    ("_number_pieces", False, None, "completed"),   # mid direct exchange: rerun elsewhere
+    ("_emit_chunk", False, None, "completed"),      # the chunk is written again, elsewhere
+    ("_emit_chunk", False, 0, "failed"),            # KilledWorker at once: one line
 ])
-def test_a_worker_killed_mid_shuffle_or_mid_write(tmp_path, process_client, task, retries,
-                                                  expected):
+def test_a_worker_killed_mid_shuffle_or_mid_write(tmp_path, process_client, monkeypatch, task,
+                                                  shuffle, retries, expected):
     from distributed.diagnostics.plugin import WorkerPlugin
+
+    from qdrefine.distributed import level
+
+    if shuffle:
+        monkeypatch.setattr(level, "DIRECT_PIECES", 0)
 
     plugin = type("Kill", (KillOnce, WorkerPlugin), {})(task, str(tmp_path / "marker"))
     mesh = jittered_grid(3, seed=1)

@@ -62,6 +62,10 @@ MAX_POINTS = 3_037_000_499
 #: Bins of the histogram of smaller vertices that places the edge partitions' boundaries.
 _BINS = 4096
 
+#: Exchanges of at most this many pieces (sources x destinations) go directly from task to
+#: task (NumPy arrays, one small task per piece); larger ones through Dask's P2P shuffle.
+DIRECT_PIECES = 5_000
+
 
 def _bounds(n: int, chunk: int) -> list[tuple[int, int]]:
     """Row ranges ``[(start, stop)]`` of ``n`` rows in chunks of ``chunk``."""
@@ -110,6 +114,10 @@ def _coords_array(url: str, m: int, chunk: int, create: bool):
     return zarr.open_array(url, mode="r")
 
 
+class _Direct(list):
+    """The edge partitions' futures when their results go back directly (not shuffled)."""
+
+
 class Level:
     """One level of refinement of ``src`` into a new (incomplete) store at ``out``.
 
@@ -146,6 +154,7 @@ class Level:
                 self._corners()
             self.report.stage("edge ids in sorted order and new points (range shuffle)")
             numbered, counts = self._edges()
+            self.direct_back = isinstance(numbered, _Direct)
             self.report.stage("emission of the children, written chunk by chunk")
             try:
                 self._emit(numbered, counts)
@@ -163,6 +172,9 @@ class Level:
 
         job = self.job
         p_ranges = _bounds(self.src.n_points, int(job.src["points"].chunks[0]))
+        if len(p_ranges) * len(self.tri_ranges) <= DIRECT_PIECES:
+            self._corners_direct(p_ranges)
+            return
         points = dd.from_map(_points_frame, p_ranges, job=job, meta=_meta("x", "y"),
                              divisions=_divisions(p_ranges, 1))
         corners = dd.from_map(_corners_frame, self.tri_ranges, job=job,
@@ -172,6 +184,21 @@ class Level:
         write = delayed(_write_coords, pure=False)
         self._compute([write(part, job, a, b) for part, (a, b)
                        in zip(by_tri.to_delayed(), self.tri_ranges, strict=True)])
+
+    def _corners_direct(self, p_ranges: list[tuple[int, int]]) -> None:
+        """Stage 1 without a shuffle: each triangle chunk asks each points chunk for the
+        coordinates of its vertices there, and writes its corners."""
+        from dask import delayed
+
+        job = self.job
+        starts = np.array([a for a, _ in p_ranges[1:]], dtype=np.int64)
+        ask = delayed(_vertex_requests, pure=False, nout=len(p_ranges))
+        asks = [ask(r, job, starts) for r in self.tri_ranges]
+        answer = delayed(_answer_points, pure=False, nout=len(self.tri_ranges))
+        answers = [answer([q[i] for q in asks], job, a, b) for i, (a, b) in enumerate(p_ranges)]
+        write = delayed(_write_coords_direct, pure=False)
+        self._compute([write([r[j] for r in answers], job, a, b)
+                       for j, (a, b) in enumerate(self.tri_ranges)])
 
     def _splitters(self) -> tuple[int, ...]:
         """Divisions of the edge keys: vertex boundaries ``V_i`` (as keys ``V_i N``) that
@@ -201,6 +228,9 @@ class Level:
 
         job = self.job
         divisions = self._splitters()
+        n_parts = len(divisions) - 1
+        if (job.n_chunks + len(self.edge_ranges)) * n_parts <= DIRECT_PIECES:
+            return self._edges_direct(divisions)
         meta = _meta("key", "j", "xlo", "ylo", "xhi", "yhi", ints=2)
         rows = dd.from_map(_edge_frame, list(enumerate(self.tri_ranges)), job=job, meta=meta)
         if self.edge_ranges:
@@ -212,6 +242,24 @@ class Level:
                                 keep=True)
         counts = self.client.gather(self.client.map(_count, futures, pure=False))
         return futures, np.asarray(counts, dtype=np.int64)
+
+    def _edges_direct(self, divisions: tuple[int, ...]) -> tuple[list, NDArray[np.int64]]:
+        """Stage 2 without a shuffle: every chunk cuts its sorted distinct keys at the
+        divisions, and partition ``p`` receives piece ``p`` of every chunk."""
+        from dask import delayed
+
+        job = self.job
+        cuts = np.array(divisions[1:-1], dtype=np.int64)
+        n_parts = len(divisions) - 1
+        pieces = delayed(_edge_pieces, pure=False, nout=n_parts)
+        sources = [pieces(r, job, cuts) for r in self.tri_ranges]
+        tagged = delayed(_tagged_pieces, pure=False, nout=n_parts)
+        sources += [tagged(r, job, cuts) for r in self.edge_ranges]
+        number = delayed(_number_pieces, pure=False)
+        futures = self._compute([number([src[p] for src in sources], job)
+                                 for p in range(n_parts)], keep=True)
+        counts = self.client.gather(self.client.map(_count, futures, pure=False))
+        return _Direct(futures), np.asarray(counts, dtype=np.int64)
 
     def _emit(self, numbered: list, counts: NDArray[np.int64]) -> None:
         """Stage 3: triangles, cell tags, tagged edges and points of the output store."""
@@ -225,10 +273,12 @@ class Level:
                                      self.metadata)
         job.out = {name: group[name] for name in mesh_store.ARRAYS if name in group}
         offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-        back = dd.from_delayed([delayed(_back_rows)(f) for f in numbered],
-                               meta=_meta("j", "key", "p", "lid", ints=4), verify_meta=False)
         n_targets = job.n_chunks + len(self.edge_ranges)
-        parts = back.set_index("j", divisions=(*range(n_targets), n_targets - 1)).to_delayed()
+        if self.direct_back:
+            lids = delayed(_lids_for, pure=False)
+            parts = [[lids(f, j) for f in numbered] for j in range(n_targets)]
+        else:
+            parts = self._back_shuffle(numbered, n_targets)
         emit_chunk = delayed(_emit_chunk, pure=False)
         tasks = [emit_chunk(part, job, offsets, a, b) for part, (a, b)
                  in zip(parts, self.tri_ranges, strict=False)]
@@ -242,6 +292,14 @@ class Level:
         points = points.rechunk((job.out["points"].chunks[0], 2))
         tasks.append(da.store(points, job.out["points"], lock=False, compute=False))
         self._compute(tasks)
+
+    def _back_shuffle(self, numbered: list, n_targets: int) -> list:
+        import dask.dataframe as dd
+        from dask import delayed
+
+        back = dd.from_delayed([delayed(_back_rows)(f) for f in numbered],
+                               meta=_meta("j", "key", "p", "lid", ints=4), verify_meta=False)
+        return back.set_index("j", divisions=(*range(n_targets), n_targets - 1)).to_delayed()
 
     def _specs(self, n_out: int) -> dict[str, tuple[tuple[int, ...], Any] | None]:
         src, t, k = self.src, self.sch.n_children, self.job.k
@@ -340,6 +398,30 @@ def _in_order(index: NDArray, start: int, stop: int, what: str) -> None:
                            f"as {len(index)} rows")
 
 
+def _vertex_requests(rows: tuple[int, int], job: _Job, starts: NDArray[np.int64]
+                     ) -> list[NDArray[np.int64]]:
+    """The distinct vertices of triangles ``rows``, sorted, cut at the points chunks'
+    ``starts``: piece ``i`` goes to points chunk ``i``."""
+    a, b = rows
+    vertices = np.unique(_triangles(job, a, b))
+    return np.split(vertices, np.searchsorted(vertices, starts))
+
+
+def _answer_points(requests: list[NDArray[np.int64]], job: _Job, a: int, b: int
+                   ) -> list[NDArray[np.float64]]:
+    """Points chunk ``a .. b - 1`` (checked) answers every triangle chunk's request."""
+    p = _points_frame((a, b), job)[["x", "y"]].to_numpy(np.float64)
+    return [p[r - a] for r in requests]
+
+
+def _write_coords_direct(answers: list[NDArray[np.float64]], job: _Job, a: int, b: int
+                         ) -> None:
+    t = _triangles(job, a, b)
+    _, inverse = np.unique(t, return_inverse=True)
+    xy = np.concatenate(answers) if answers else np.empty((0, 2))
+    job.coords[a:b] = xy[inverse.reshape(-1)].reshape(-1, 3, 2)
+
+
 def _write_coords(part: pd.DataFrame, job: _Job, a: int, b: int) -> None:
     _in_order(part.index.to_numpy(), 3 * a, 3 * b, "corner")
     job.coords[a:b] = part[["x", "y"]].to_numpy(np.float64).reshape(-1, 3, 2)
@@ -394,6 +476,46 @@ def _tagged_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
                          "xlo": nan, "ylo": nan, "xhi": nan, "yhi": nan})
 
 
+def _edge_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list[tuple]:
+    """:func:`_edge_frame` as arrays, cut at the partitions' keys: piece ``p`` is
+    ``(keys, ends (u, 4))`` of partition ``p``, keys sorted."""
+    frame = _edge_frame((0, rows), job)
+    keys = frame["key"].to_numpy(np.int64)
+    ends = frame[["xlo", "ylo", "xhi", "yhi"]].to_numpy(np.float64)
+    at = np.searchsorted(keys, cuts)
+    return list(zip(np.split(keys, at), np.split(ends, at), strict=True))
+
+
+def _tagged_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list[tuple]:
+    """The tagged edges' sorted distinct keys, cut as in :func:`_edge_pieces` (no ends)."""
+    a, b = rows
+    e = _vertex_rows(job, "edges", "edge", a, b)
+    keys = np.unique(e.min(axis=1) * job.n + e.max(axis=1))
+    return [(k, None) for k in np.split(keys, np.searchsorted(keys, cuts))]
+
+
+def _number_pieces(pieces: list[tuple], job: _Job
+                   ) -> tuple[int, NDArray[np.float64], list[NDArray[np.int64]]]:
+    """Edge partition from the pieces of every triangle chunk, then every tagged edge
+    chunk: its number of distinct edges, their new points and, for every source, the
+    local ids of the keys it sent, in its order (-1: a tagged edge of no triangle)."""
+    tri = [pc for pc in pieces if pc[1] is not None]
+    keys = np.concatenate([k for k, _ in tri]) if tri else np.empty(0, dtype=np.int64)
+    ends = np.concatenate([e for _, e in tri]) if tri else np.empty((0, 4))
+    unique, first = np.unique(keys, return_index=True)
+    lids = []
+    for k, _ in pieces:
+        lid = np.searchsorted(unique, k)
+        found = lid < len(unique)
+        found[found] = unique[lid[found]] == k[found]
+        lids.append(np.where(found, lid, -1).astype(np.int64))
+    return len(unique), _new_points(ends[first], job.k), lids
+
+
+def _lids_for(result: tuple, j: int) -> NDArray[np.int64]:
+    return result[2][j]
+
+
 def _number_edges(part: pd.DataFrame, job: _Job, p: int
                   ) -> tuple[int, NDArray[np.float64], pd.DataFrame]:
     """Edge partition ``p`` (a range of keys, sorted): its number of distinct edges, their
@@ -439,9 +561,19 @@ def _new_points(ends: NDArray[np.float64], k: int) -> NDArray[np.float64]:
     return out[2 * u:]
 
 
-def _global_ids(part: pd.DataFrame, offsets: NDArray[np.int64], keys: NDArray[np.int64]
-                ) -> NDArray[np.int64]:
-    """The in-memory edge id of every key of ``keys`` (any shape), from the rows sent back."""
+def _global_ids(part: pd.DataFrame | list, offsets: NDArray[np.int64],
+                keys: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The in-memory edge id of every key of ``keys`` (any shape), from the rows sent back
+    (a frame after a shuffle, or the partitions' local ids of this chunk's sorted distinct
+    keys, partition by partition)."""
+    if isinstance(part, list):
+        distinct, inverse = np.unique(keys, return_inverse=True)
+        lid = np.concatenate(part) if part else np.empty(0, dtype=np.int64)
+        if len(lid) != len(distinct):
+            raise RuntimeError("qdrefine internal error: edge ids did not come back")
+        p = np.repeat(np.arange(len(part)), [len(x) for x in part])
+        gid = np.where(lid < 0, -1, offsets[p] + lid)
+        return gid[inverse.reshape(keys.shape)]
     sent = part["key"].to_numpy(dtype=np.int64)
     gid = offsets[part["p"].to_numpy(dtype=np.int64)] + part["lid"].to_numpy(dtype=np.int64)
     order = np.argsort(sent, kind="stable")
