@@ -150,9 +150,9 @@ class Level:
         with dask.config.set({"dataframe.convert-string": False,
                               "dataframe.shuffle.method": "p2p"}):
             if not self.coords_ready:
-                self.report.stage("corner coordinates (merge and shuffle)")
+                self.report.stage("corner coordinates")
                 self._corners()
-            self.report.stage("edge ids in sorted order and new points (range shuffle)")
+            self.report.stage("edge ids in sorted order and new points")
             numbered, counts = self._edges()
             self.direct_back = isinstance(numbered, _Direct)
             self.report.stage("emission of the children, written chunk by chunk")
