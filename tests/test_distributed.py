@@ -186,6 +186,18 @@ def test_invalid_content_is_named(tmp_path, client, points, triangles, edges, me
     assert leftovers(tmp_path) == ["bad.zarr"]  # nothing left behind
 
 
+def test_a_needle_far_from_the_origin_is_refused_as_in_memory(tmp_path, client):
+    needle = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1e-9], [0.5, -1.0]]) + 1e7
+    mesh = Mesh(needle, [[0, 1, 2], [0, 3, 1]])
+    with pytest.raises(ValueError, match="too thin"):
+        refine(mesh, "7t-qd")
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=1)
+    with pytest.raises(ValueError, match=r"in.zarr: triangle 0 \(0, 1, 2\) is too thin for "
+                                         r"its distance from the origin"):
+        refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", client=client)
+    assert leftovers(tmp_path) == ["in.zarr"]
+
+
 def test_errors_before_any_work(tmp_path, client):
     good = store.create(tmp_path / "in.zarr", jittered_grid(2, seed=0)).path
     with pytest.raises(FileNotFoundError, match="missing.zarr: no such mesh store"):

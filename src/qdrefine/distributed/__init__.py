@@ -158,7 +158,7 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
             path = out if last else f"{work}/level-{level}.zarr"
             meta = _metadata(src, sch, levels) if last else {}
             Level(cl, current, sch, path, f"{work}/coords-{level}",
-                  None if last else f"{work}/coords-{level + 1}", level > 1, meta,
+                  None if last else f"{work}/coords-{level + 1}", level, meta,
                   report.prefixed(f"level {level}/{levels}: "), timeouts).run()
             if current is not src:
                 mesh_store._remove(current.path)

@@ -99,6 +99,7 @@ class _Job:
         self.coords_url, self.next_coords_url = coords, next_coords
         self.coords: Any = None
         self.next_coords: Any = None
+        self.level = 1
         self.token = os.urandom(16).hex()
 
     def __dask_tokenize__(self) -> str:
@@ -121,15 +122,16 @@ class _Direct(list):
 class Level:
     """One level of refinement of ``src`` into a new (incomplete) store at ``out``.
 
-    ``coords`` is the URL of the Zarr array of corner coordinates; it is already written
-    when ``coords_ready`` (by the previous level's emission). With ``next_coords``, the
+    ``coords`` is the URL of the Zarr array of corner coordinates; from ``level`` 2 on it
+    is already written (by the previous level's emission). With ``next_coords``, the
     emission writes the children's corner coordinates there.
     """
 
     def __init__(self, client: Client, src: mesh_store.MeshStore, sch: Scheme, out: str,
-                 coords: str, next_coords: str | None, coords_ready: bool,
+                 coords: str, next_coords: str | None, level: int,
                  metadata: dict[str, Any], report: cluster.Reporter,
                  timeouts: dict[str, float]) -> None:
+        coords_ready = level > 1
         self.client, self.src, self.sch, self.out = client, src, sch, out
         self.coords_ready, self.metadata, self.report = coords_ready, metadata, report
         self.timeouts = timeouts
@@ -137,6 +139,7 @@ class Level:
             raise ValueError(f"{report.prefix}{src.n_points} points; distributed refinement "
                              f"handles at most {MAX_POINTS} per level (int64 edge keys)")
         job = self.job = _Job(src, sch, coords, next_coords)
+        job.level = level
         job.coords = _coords_array(coords, job.m, job.chunk, not coords_ready)
         if next_coords is not None:
             job.next_coords = _coords_array(next_coords, job.m * job.children, job.chunk, True)
@@ -264,7 +267,6 @@ class Level:
     def _emit(self, numbered: list, counts: NDArray[np.int64]) -> None:
         """Stage 3: triangles, cell tags, tagged edges and points of the output store."""
         import dask.array as da
-        import dask.dataframe as dd
         from dask import delayed
 
         job = self.job
@@ -602,7 +604,9 @@ def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: in
     u = len(vertices)
     children = np.empty((len(t) * tc, 3), dtype=index_dtype(u + k * (job.n_out - job.n)))
     with _one_numba_thread():
-        emit(points, local, gid, k, sch.forms, sch.lut, sch.tables, children)
+        suspect = emit(points, local, gid, k, sch.forms, sch.lut, sch.tables, children)
+    if suspect.any():
+        _check_rounding(job, a, t, points, local, gid, children, suspect)
     old = children < u
     glob = np.where(old, vertices[np.where(old, children, 0)], job.n + (children - u))
     job.out["triangles"][a * tc:b * tc] = glob.astype(job.out["triangles"].dtype)
@@ -628,6 +632,26 @@ def _child_coordinates(job: _Job, points: NDArray, local: NDArray, gid: NDArray,
     rel = np.where(old, 0, block - u)
     pos = np.minimum(np.searchsorted(edge_ids, rel // k), len(new) - 1)
     return np.where(old[..., None], points[np.where(old, block, 0)], new[pos, rel % k])
+
+
+def _check_rounding(job: _Job, a: int, t: NDArray, points: NDArray, local: NDArray,
+                    gid: NDArray, children: NDArray, suspect: NDArray[np.bool_]) -> None:
+    """As :func:`qdrefine.refine.check_rounding` in memory: the children of the parents at
+    risk (``suspect``, from the kernel's certified bound) must be counter-clockwise with
+    their new points rounded to float64; ``ValueError`` naming the first parent otherwise."""
+    tc = job.children
+    rows = np.flatnonzero(np.repeat(suspect, tc))
+    xy = _child_coordinates(job, points, local, gid, children[rows]).reshape(-1, 2)
+    signs = orient_signs(np.ascontiguousarray(xy), np.arange(len(xy)).reshape(-1, 3))
+    bad = np.flatnonzero(signs <= 0)
+    if bad.size:
+        i = int(rows[bad[0]] // tc)
+        what = "zero area" if signs[bad[0]] == 0 else "clockwise orientation"
+        level = f" (at level {job.level})" if job.level > 1 else ""
+        raise ValueError(f"{job.path}: triangle {a + i} {tuple(t[i].tolist())}{level} is too "
+                         "thin for its distance from the origin: its new points rounded to "
+                         f"float64 give a child with {what}; translate the mesh nearer the "
+                         "origin or refine less")
 
 
 def _check_orientation(points: NDArray, local: NDArray, t: NDArray, a: int, path: str) -> None:
