@@ -449,3 +449,55 @@ def test_a_killed_client_leaves_garbage_the_next_run_removes(tmp_path, client):
     refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", client=client)  # the next run
     assert_identical(small, "7t-qd", 1, store.to_mesh(tmp_path / "out.zarr"))
     assert leftovers(tmp_path) == ["in.zarr", "out.zarr"]
+
+
+# an object store --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def s3_bucket():
+    """A local S3 (moto's server) with a bucket; s3:// URLs reach it through fsspec's
+    configuration (this process: the cluster's workers are threads here)."""
+    import logging
+
+    import boto3
+    import fsspec
+    from moto.server import ThreadedMotoServer
+
+    logging.getLogger("werkzeug").setLevel(logging.ERROR)
+    server = ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
+    server.start()
+    host, port = server.get_host_and_port()
+    url = f"http://{host}:{port}"
+    credentials = {"aws_access_key_id": "testing", "aws_secret_access_key": "testing"}
+    boto3.client("s3", endpoint_url=url, region_name="us-east-1",
+                 **credentials).create_bucket(Bucket="qd-bucket")
+    before = fsspec.config.conf.get("s3")
+    fsspec.config.conf["s3"] = {"endpoint_url": url, "key": "testing", "secret": "testing",
+                                "client_kwargs": {"region_name": "us-east-1"}}
+    yield "s3://qd-bucket"
+    if before is None:
+        fsspec.config.conf.pop("s3")
+    else:
+        fsspec.config.conf["s3"] = before
+    server.stop()
+
+
+def test_stores_on_s3(s3_bucket, client):
+    mesh, old = jittered_grid(3, seed=9), jittered_grid(2, seed=2)
+    store.create(f"{s3_bucket}/in.zarr", mesh, chunk_size=20)
+    store.create(f"{s3_bucket}/out.zarr", old)
+    refine_store(f"{s3_bucket}/in.zarr", f"{s3_bucket}/out.zarr", levels=2, client=client)
+    assert_identical(mesh, "7t-qd", 2, store.to_mesh(f"{s3_bucket}/out.zarr"))  # replaced
+    fs, root = store.filesystem(s3_bucket)
+    assert sorted(fs.ls(root, detail=False)) == ["qd-bucket/in.zarr", "qd-bucket/out.zarr"]
+    group = zarr.create_group(store=f"{s3_bucket}/bad.zarr", attributes={
+        "qdrefine": {"format": "mesh", "version": 2, "complete": True, "metadata": {}}})
+    group.create_array("points", data=np.asarray(SQUARE, float))
+    group.create_array("triangles", data=np.asarray(GOOD[:3] + [[1, 2, 5]]))
+    with pytest.raises(ValueError, match="clockwise"):  # a failed run keeps the old target
+        refine_store(f"{s3_bucket}/bad.zarr", f"{s3_bucket}/out.zarr", client=client)
+    fs, root = store.filesystem(s3_bucket)
+    assert sorted(fs.ls(root, detail=False)) == ["qd-bucket/bad.zarr", "qd-bucket/in.zarr",
+                                                 "qd-bucket/out.zarr"]
+    assert_identical(mesh, "7t-qd", 2, store.to_mesh(f"{s3_bucket}/out.zarr"))

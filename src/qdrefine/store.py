@@ -168,10 +168,13 @@ def is_local(url: str) -> bool:
 
 
 def filesystem(url: str):
-    """``(fsspec filesystem, path within it)`` of ``url``."""
+    """``(fsspec filesystem, path within it)`` of ``url``, with no stale listings cached
+    (object stores' filesystems cache directory listings that other writers change)."""
     import fsspec
 
-    return fsspec.core.url_to_fs(url)
+    fs, root = fsspec.core.url_to_fs(url)
+    fs.invalidate_cache()
+    return fs, root
 
 
 def _join(url: str, name: str) -> str:
