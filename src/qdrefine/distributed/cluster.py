@@ -217,14 +217,14 @@ def compute(client: Client, tasks: list, *, pause_timeout: float = PAUSE_TIMEOUT
     the other tasks are cancelled and the workers given time to finish the writes they are
     in, so that no write lands after the temporary store is removed.
     """
-    from distributed import wait
-
     futures = client.compute(tasks)
     try:
         pending, last, since, checked, paused = set(futures), -1, time.monotonic(), 0.0, {}
+        nap = 0.01
         while pending:
-            with contextlib.suppress(TimeoutError):
-                wait(list(pending), timeout=1.0, return_when="FIRST_COMPLETED")
+            # poll (distributed.wait would use the default client, maybe another's loop)
+            time.sleep(nap)
+            nap = min(2 * nap, 0.2)
             done = {f for f in pending if f.done()}
             if any(f.status != "finished" for f in done):
                 break
