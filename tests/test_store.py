@@ -232,13 +232,13 @@ def test_unwritten_chunks_fail_validation_and_incomplete_stores_are_refused(tmp_
         store.open(tmp_path / "half.zarr")
     assert not store.is_store(tmp_path / "half.zarr")
     assert store.is_store(tmp_path / "half.zarr", complete=False)  # may be replaced
-    store._finish(str(tmp_path / "half.zarr"))  # even if marked complete by mistake:
+    store.finish(str(tmp_path / "half.zarr"))  # even if marked complete by mistake:
     with pytest.raises(ValueError, match="half.zarr: .*triangle 1 .*-1"):
         store.to_mesh(tmp_path / "half.zarr")
     group = store.new_group(str(tmp_path / "nan.zarr"), {
         "points": ((3, 2), np.float64), "triangles": ((1, 3), np.int32)}, 2)
     group["triangles"][:] = GOOD["triangles"]
-    store._finish(str(tmp_path / "nan.zarr"))
+    store.finish(str(tmp_path / "nan.zarr"))
     with pytest.raises(ValueError, match="nan.zarr: .*non-finite"):
         store.to_mesh(tmp_path / "nan.zarr")
 

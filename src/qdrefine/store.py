@@ -61,7 +61,8 @@ if TYPE_CHECKING:
     import dask.array
 
 __all__ = ["MeshStore", "create", "open", "to_mesh", "from_file", "to_file", "is_store",
-           "clean", "location", "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT"]
+           "clean", "location", "filesystem", "new_group", "finish", "remove", "writing",
+           "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT"]
 
 PathLike = str | os.PathLike
 
@@ -289,7 +290,7 @@ def _chunk_size(value: object) -> int:
     return int(value)
 
 
-def _finish(url: str) -> None:
+def finish(url: str) -> None:
     """Mark the store at ``url`` complete and consolidate its metadata: the last write."""
     import zarr
 
@@ -322,10 +323,10 @@ def writing(path: PathLike) -> Iterator[str]:
             os.mkdir(root, permission_bits(Path(url), 0o777))
             os.chmod(root, permission_bits(Path(url), 0o777))
         yield tmp
-        _finish(tmp)
+        finish(tmp)
         _replace(tmp, url)
     except BaseException:
-        _remove(tmp)
+        remove(tmp)
         raise
 
 
@@ -386,12 +387,13 @@ def clean(path: PathLike, everything: bool = False) -> list[str]:
         if owner is False:
             continue
         if everything or owner is None or not _alive(*owner):
-            _remove(_join(parent, entry))
+            remove(_join(parent, entry))
             removed.append(_join(parent, entry))
     return removed
 
 
-def _remove(url: str) -> None:
+def remove(url: str) -> None:
+    """Remove whatever is at ``url`` (a store, a temporary), if anything."""
     fs, root = filesystem(url)
     with contextlib.suppress(FileNotFoundError, OSError):
         fs.rm(root, recursive=True)
@@ -418,7 +420,7 @@ def _replace(tmp: str, url: str) -> None:
         old = filesystem(_temporary(url, _OLD))[1]
         os.rename(root, old)
         os.rename(tmp_root, root)
-        _remove(old)
+        remove(old)
         return
     # object stores: no rename. The old target's root zarr.json goes first (it is no longer
     # a store), the new one's last (it becomes one only when everything else is there).
@@ -430,7 +432,7 @@ def _replace(tmp: str, url: str) -> None:
     head = f"{tmp_root}/zarr.json"
     for f in [f for f in files if f != head] + [head]:
         fs.mv(f, root + f[len(tmp_root):])
-    _remove(tmp)
+    remove(tmp)
 
 
 # --------------------------------------------------------------------------------------------

@@ -161,16 +161,16 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
                   None if last else f"{work}/coords-{level + 1}", level, meta,
                   report.prefixed(f"level {level}/{levels}: "), timeouts).run()
             if current is not src:
-                mesh_store._remove(current.path)
-            mesh_store._remove(f"{work}/coords-{level}")
+                mesh_store.remove(current.path)
+            mesh_store.remove(f"{work}/coords-{level}")
             if not last:
-                mesh_store._finish(path)
+                mesh_store.finish(path)
                 current = mesh_store.open(path)
             times.append(time.perf_counter() - t0)
         if levels == 0:
             report.stage("copying the source")
             copy_store(cl, src, out, _metadata(src, sch, 0), timeouts)
-        mesh_store._remove(work)
+        mesh_store.remove(work)
     result = mesh_store.open(url)
     report.done(f"wrote {url}")
     return RefineSummary(url, sch.name, levels, result.n_points, result.n_triangles,
