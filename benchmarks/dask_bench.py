@@ -18,10 +18,16 @@ worker processes with ``--memory`` each, then runs
   and on disk, and its ratio to the memory of all workers;
 * a check: exact point and triangle counts (from the input's edge count), and for a random
   sample of input triangles, the rows of their descendants equal bit for bit the in-memory
-  ``qdrefine.refine`` of that triangle alone (coordinates and cell tags).
+  ``qdrefine.refine`` of that triangle alone (coordinates and cell tags);
+* with ``--baseline`` (meshes that fit in memory): the in-memory **store-to-store** time of
+  the same refinement in the same run (``store.to_mesh``, ``qdrefine.refine``,
+  ``store.create`` with the same chunks, on all cores), the ratio of each Dask run to it,
+  and the check that the Dask output equals the in-memory one array by array, bit for bit.
 
 Run: ``python benchmarks/dask_bench.py --triangles 6.3e6 --levels 2 --workers 2,1
---memory 1GiB --dir /scratch/qd --json benchmarks/results/dask-DATE.json``.
+--memory 1GiB --dir /scratch/qd --json benchmarks/results/dask-DATE.json``, or for the
+comparison with in-memory refinement ``--triangles 2e6 --workers 2 --memory 4GiB
+--chunk 262144 --baseline``.
 """
 
 from __future__ import annotations
@@ -70,7 +76,7 @@ def check_sample(mesh: Mesh, out: store.MeshStore, scheme: str, levels: int,
     refinement of each triangle alone; returns the number compared (raises if different)."""
     import zarr
 
-    group = zarr.open_group(str(out.path), mode="r")
+    group = zarr.open_group(out.path, mode="r")
     points, triangles, tags = group["points"], group["triangles"], group["cell_tags"]
     per = qdrefine.get_scheme(scheme).n_children ** levels
     rng = np.random.default_rng(seed)
@@ -138,6 +144,38 @@ def disk_bytes(path: Path) -> int:
                               check=True).stdout.split()[0])
 
 
+def baseline(args: argparse.Namespace, source: str) -> dict:
+    """In-memory store-to-store refinement of ``source``: read, refine, write."""
+    target = args.dir / "in-memory.zarr"
+    load = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    mesh = store.to_mesh(source)
+    t1 = time.perf_counter()
+    fine = qdrefine.refine(mesh, args.scheme, args.levels)
+    t2 = time.perf_counter()
+    store.create(target, fine, chunk_size=args.chunk)
+    t3 = time.perf_counter()
+    return {"seconds": t3 - t0, "read_seconds": t1 - t0, "refine_seconds": t2 - t1,
+            "write_seconds": t3 - t2, "load_average_1min": [load, os.getloadavg()[0]],
+            "numba_threads": _numba_threads(),
+            "target": str(target)}
+
+
+def identical(a: str, b: str) -> bool:
+    """Whether two stores hold the same arrays, bit for bit (loaded one array at a time)."""
+    import zarr
+
+    ga, gb = zarr.open_group(a, mode="r"), zarr.open_group(b, mode="r")
+    for name in store.ARRAYS:
+        if (name in ga) != (name in gb):
+            return False
+        if name in ga:
+            x, y = ga[name][...], gb[name][...]
+            if x.dtype != y.dtype or not np.array_equal(x, y):
+                return False
+    return True
+
+
 def run(args: argparse.Namespace, mesh: Mesh, source: Path, workers: int) -> dict:
     work = args.dir / f"dask-{workers}"
     shutil.rmtree(work, ignore_errors=True)
@@ -172,7 +210,9 @@ def run(args: argparse.Namespace, mesh: Mesh, source: Path, workers: int) -> dic
         raise AssertionError(f"counts {(out.n_points, out.n_triangles)} != expected "
                              f"{(n_points, n_triangles)}")
     out_bytes = array_bytes(out)
+    same = identical(out.path, args.baseline_target) if args.baseline_target else None
     result = {
+        "identical_to_in_memory": same,
         "workers": workers,
         "memory_limit_per_worker": memory_limit,
         "seconds": summary.seconds,
@@ -214,7 +254,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--dir", type=Path, default=Path("dask-bench"))
     parser.add_argument("--keep", action="store_true", help="keep the refined stores")
     parser.add_argument("--json", type=Path)
+    parser.add_argument("--baseline", action="store_true",
+                        help="also time the in-memory store-to-store refinement and compare")
     args = parser.parse_args(argv)
+    args.baseline_target = None
     args.dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     mesh = jittered_grid(args.triangles)
@@ -231,14 +274,26 @@ def main(argv: list[str] | None = None) -> int:
                   "tagged_edges": len(mesh.edges), "chunk": args.chunk},
         "scheme": args.scheme, "levels": args.levels, "runs": [],
     }
+    if args.baseline:
+        report["in_memory"] = baseline(args, source)
+        args.baseline_target = report["in_memory"]["target"]
+        print(f"in memory, store to store: {report['in_memory']['seconds']:.1f} s", flush=True)
     for workers in (int(w) for w in args.workers.split(",")):
         result = run(args, mesh, source, workers)
+        if args.baseline:
+            result["over_in_memory"] = result["seconds"] / report["in_memory"]["seconds"]
         report["runs"].append(result)
         print(json.dumps(result, indent=1), flush=True)
         if args.json:  # after every run: a long benchmark keeps what it measured
             report["machine"]["load_average_end"] = os.getloadavg()
             args.json.write_text(json.dumps(report, indent=1) + "\n")
     return 0
+
+
+def _numba_threads() -> int:
+    import numba
+
+    return int(numba.get_num_threads())
 
 
 def _git_head() -> str | None:

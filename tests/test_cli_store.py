@@ -51,13 +51,16 @@ def test_convert_refuses_chunk_size_for_a_file(tmp_path, capsys):
 
 def test_refine_on_a_local_dask_cluster_equals_in_memory(tmp_path):
     mesh = examples.plate_with_hole()
-    store.create(tmp_path / "in.zarr", mesh, chunk_size=64)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=200)
     result = cli("refine", tmp_path / "in.zarr", tmp_path / "out.zarr", "--levels", "2",
                  "--dask")
     assert result.returncode == 0, result.stderr
     assert "2 levels on" in result.stdout and "Dask worker" in result.stdout
     assert result.stderr.startswith("dask ")  # the dashboard link, or "dask cluster ready"
-    _same(store.to_mesh(tmp_path / "out.zarr"), qdrefine.refine(mesh, "7t-qd", levels=2))
+    out, fine = store.to_mesh(tmp_path / "out.zarr"), qdrefine.refine(mesh, "7t-qd", levels=2)
+    _same(out, fine)
+    assert np.array_equal(out.points, fine.points)  # the same numbering, bit for bit
+    assert np.array_equal(out.triangles, fine.triangles)
 
 
 def test_dask_needs_stores_and_no_marks(tmp_path, capsys):
@@ -85,3 +88,63 @@ def test_missing_optional_package_is_one_line(tmp_path, capsys, monkeypatch):
     assert err == ("qdrefine: error: this needs the optional package 'zarr': "
                    "pip install 'qdrefine[dask]'\n")
     assert not (tmp_path / "in.zarr").exists()
+
+
+def test_refine_and_convert_between_memory_urls(tmp_path, capsys):
+    mesh = examples.plate_with_hole()
+    store.create("memory://qd-cli/in.zarr", mesh, chunk_size=400)
+    assert main(["refine", "memory://qd-cli/in.zarr", "memory://qd-cli/out.zarr", "--dask",
+                 "--levels", "2"]) == 0  # memory:// runs on a cluster in this process
+    out = store.to_mesh("memory://qd-cli/out.zarr")
+    fine = qdrefine.refine(mesh, "7t-qd", levels=2)
+    assert np.array_equal(out.points, fine.points) and np.array_equal(out.triangles,
+                                                                      fine.triangles)
+    assert main(["convert", "memory://qd-cli/out.zarr", str(tmp_path / "out.msh"), "-q"]) == 0
+    assert qdrefine.read(tmp_path / "out.msh").n_triangles == fine.n_triangles
+    capsys.readouterr()
+    assert main(["convert", str(tmp_path / "out.msh"), "memory://qd-cli/x.msh"]) == 1
+    assert "a URL must name a Zarr store" in capsys.readouterr().err
+    fs, root = store.filesystem("memory://qd-cli")
+    fs.rm(root, recursive=True)
+
+
+def test_clean_removes_what_a_dead_run_left(tmp_path):
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True).stdout.strip()
+    import socket
+
+    left = tmp_path / f".out.zarr~{socket.gethostname()}~{dead}~00ff00ff.tmp"
+    left.mkdir()
+    result = cli("clean", tmp_path / "out.zarr")
+    assert result.returncode == 0 and result.stdout == f"removed {left}\n"
+    assert not left.exists()
+    result = cli("clean", tmp_path / "out.zarr")
+    assert result.stdout == f"{tmp_path / 'out.zarr'}: no temporaries to remove\n"
+
+
+def test_sigterm_is_handled_like_ctrl_c(tmp_path):
+    import signal
+    import time
+
+    from meshes import jittered_grid
+
+    old = examples.square(2)
+    store.create(tmp_path / "in.zarr", jittered_grid(30, seed=1), chunk_size=300)
+    store.create(tmp_path / "out.zarr", old)
+    proc = subprocess.Popen([sys.executable, "-m", "qdrefine", "refine", str(tmp_path / "in.zarr"),
+                             str(tmp_path / "out.zarr"), "--levels", "2", "--dask"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if any((p / "_work").exists() for p in tmp_path.iterdir()
+               if p.name.startswith(".out.zarr~")):
+            break
+        time.sleep(0.05)
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGTERM)  # what SLURM and Kubernetes send first
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and err.splitlines()[-1] == "qdrefine: interrupted", err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.zarr", "out.zarr"]
+    got = store.to_mesh(tmp_path / "out.zarr")
+    assert np.array_equal(got.points, old.points) and np.array_equal(got.triangles,
+                                                                     old.triangles)

@@ -1,6 +1,8 @@
-"""Refinement of a chunked store on a local Dask cluster equals refinement in memory."""
+"""Refinement of a chunked store on a local Dask cluster equals refinement in memory, bit
+for bit, at any URL; failures leave the old target and no temporaries."""
 
 import importlib.util
+import os
 from pathlib import Path
 
 import numpy as np
@@ -9,10 +11,11 @@ import zarr
 
 from meshes import jittered_grid
 from qdrefine import Mesh, examples, refine, store
-from qdrefine.distributed import local_client, refine_store
-from qdrefine.topology import conformity
+from qdrefine.distributed import ClusterError, local_client, min_worker_memory, refine_store
+from qdrefine.distributed import cluster as qd_cluster
 
 SEVEN = ("7t-qd", "7t-le", "7t-d")
+FIELDS = ("points", "triangles", "cell_tags", "edges", "edge_tags")
 
 
 @pytest.fixture(scope="module")
@@ -22,65 +25,70 @@ def client():
     c.close()
 
 
-def coordinate_triples(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Cells as rows of coordinates, each rotated to start at its smallest vertex, sorted."""
-    xy = points[cells]  # (M, c, 2)
-    keys = [tuple(map(tuple, row)) for row in xy.tolist()]
-    rotated = []
-    for row in keys:
-        r = row.index(min(row))
-        rotated.append(row[r:] + row[:r])
-    return np.array(sorted(rotated))
-
-
-def assert_same_refinement(mesh: Mesh, scheme: str, levels: int, out: Mesh) -> None:
-    """``out`` (from the store) equals the in-memory refinement: row by row in coordinates
-    (children stay at ``t T ..``), as sets, in tags and edge pieces; no duplicated point."""
+def assert_identical(mesh: Mesh, scheme: str, levels: int, out: Mesh) -> None:
+    """``out`` equals ``qdrefine.refine(mesh, scheme, levels)`` array by array, bit for bit
+    (same numbering of the new points, same dtypes)."""
     fine = refine(mesh, scheme, levels)
-    assert (out.n_points, out.n_triangles) == (fine.n_points, fine.n_triangles)
-    assert out.triangles.dtype == fine.triangles.dtype
-    np.testing.assert_array_equal(out.points[: mesh.n_points], mesh.points)  # old points kept
-    np.testing.assert_array_equal(out.points[out.triangles], fine.points[fine.triangles])
-    np.testing.assert_array_equal(coordinate_triples(out.points, out.triangles),
-                                  coordinate_triples(fine.points, fine.triangles))
-    np.testing.assert_array_equal(np.unique(out.points, axis=0), np.unique(fine.points, axis=0))
-    for name in ("cell_tags", "edge_tags"):
+    for name in FIELDS:
         x, y = getattr(out, name), getattr(fine, name)
-        assert (x is None) == (y is None)
+        assert (x is None) == (y is None), name
         if x is not None:
-            np.testing.assert_array_equal(x, y)
-    if fine.edges is not None:
-        np.testing.assert_array_equal(out.points[out.edges], fine.points[fine.edges])
-    assert conformity(out).ok  # shared points across chunks are one point, not two
+            assert x.dtype == y.dtype, name
+            assert np.array_equal(x, y), name
+
+
+def leftovers(path: Path) -> list[str]:
+    return sorted(p.name for p in path.iterdir())
+
+
+@pytest.mark.parametrize("levels", [1, 2])
+@pytest.mark.parametrize("chunk", [500, 16384, 262144])
+def test_identical_to_in_memory_for_the_chunk_sizes(tmp_path, client, chunk, levels):
+    # 2450 triangles with shuffled numbering, cell tags and tagged edges: chunks of 500 give
+    # 5, then 35 chunks; 16384 gives 1, then 2; 262144 one chunk at every level
+    mesh = jittered_grid(35, seed=5)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=chunk)
+    summary = refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", "7t-qd", levels,
+                           client=client)
+    assert_identical(mesh, "7t-qd", levels, store.to_mesh(tmp_path / "out.zarr"))
+    assert summary.n_triangles == mesh.n_triangles * 7**levels
+    assert leftovers(tmp_path) == ["in.zarr", "out.zarr"]  # no temporaries
 
 
 @pytest.mark.parametrize("levels", [1, 2])
 @pytest.mark.parametrize("scheme", SEVEN)
-def test_many_chunks_equal_in_memory(tmp_path, client, scheme, levels):
-    # shuffled numbering: every chunk shares vertices and edges with the others;
+def test_every_scheme_on_many_small_chunks(tmp_path, client, scheme, levels):
     # 1 level: 32 triangles in 7 chunks; 2 levels: 8 in 3 chunks, then 56 in 19 chunks
     mesh, chunk = (jittered_grid(4, seed=11), 5) if levels == 1 else (jittered_grid(2, 7), 3)
     source = store.create(tmp_path / "in.zarr", mesh, chunk_size=chunk)
     calls = []
     summary = refine_store(source.path, tmp_path / "out.zarr", scheme, levels, client=client,
                            progress=lambda *a: calls.append(a))
-    out = store.to_mesh(tmp_path / "out.zarr")
-    assert_same_refinement(mesh, scheme, levels, out)
-    assert summary.n_triangles == mesh.n_triangles * 7**levels
+    assert_identical(mesh, scheme, levels, store.to_mesh(tmp_path / "out.zarr"))
     assert (summary.scheme, summary.levels, len(summary.level_seconds)) == (scheme, levels,
                                                                             levels)
     assert store.open(tmp_path / "out.zarr").metadata["refinements"] == [
         {"scheme": scheme, "levels": levels}]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.zarr", "out.zarr"]  # no scratch
     done = [c[1] for c in calls]
     assert done == sorted(done) and calls[-1][1] == calls[-1][2] == 1 + 3 + 2 * (levels - 1)
+
+
+def test_the_shuffle_path_for_many_chunks(tmp_path, client, monkeypatch):
+    # exchanges of more than DIRECT_PIECES pieces go through Dask's P2P shuffle instead
+    from qdrefine.distributed import level
+
+    monkeypatch.setattr(level, "DIRECT_PIECES", 0)
+    mesh = jittered_grid(3, seed=12)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=5)
+    refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", "7t-qd", 2, client=client)
+    assert_identical(mesh, "7t-qd", 2, store.to_mesh(tmp_path / "out.zarr"))
 
 
 def test_four_triangle_scheme(tmp_path, client):
     mesh = examples.plate_with_hole(n_around=6, n_rings=1)  # tagged circle, square, regions
     refine_store(store.create(tmp_path / "in.zarr", mesh, chunk_size=4).path,
                  tmp_path / "out.zarr", "4t-red", client=client)
-    assert_same_refinement(mesh, "4t-red", 1, store.to_mesh(tmp_path / "out.zarr"))
+    assert_identical(mesh, "4t-red", 1, store.to_mesh(tmp_path / "out.zarr"))
 
 
 def test_untagged_mesh_in_one_chunk_and_zero_levels(tmp_path, client):
@@ -90,13 +98,45 @@ def test_untagged_mesh_in_one_chunk_and_zero_levels(tmp_path, client):
     refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", "7t-qd", client=client)
     out = store.open(tmp_path / "out.zarr")
     assert out.cell_tags is None and out.edges is None
-    assert_same_refinement(mesh, "7t-qd", 1, out.to_mesh())
+    assert_identical(mesh, "7t-qd", 1, out.to_mesh())
     calls = []
     refine_store(tmp_path / "in.zarr", tmp_path / "same.zarr", levels=0, client=client,
                  progress=lambda *a: calls.append(a))
-    np.testing.assert_array_equal(store.to_mesh(tmp_path / "same.zarr").triangles,
-                                  mesh.triangles)
+    assert_identical(mesh, "7t-qd", 0, store.to_mesh(tmp_path / "same.zarr"))
     assert calls[-1][1] == calls[-1][2] == 2
+
+
+def test_memory_urls_and_xarray(client):
+    import xarray as xr
+
+    mesh = jittered_grid(3, seed=8)
+    store.create("memory://qd-test/in.zarr", mesh, chunk_size=20)
+    summary = refine_store("memory://qd-test/in.zarr", "memory://qd-test/out.zarr", levels=2,
+                           client=client)
+    assert summary.target == "memory://qd-test/out.zarr"
+    assert_identical(mesh, "7t-qd", 2, store.to_mesh("memory://qd-test/out.zarr"))
+    fs, root = store.filesystem("memory://qd-test")
+    assert sorted(p.rsplit("/", 1)[-1] for p in fs.ls(root, detail=False)) == ["in.zarr",
+                                                                               "out.zarr"]
+    ds = xr.open_zarr("memory://qd-test/out.zarr")
+    assert ds.sizes["face"] == mesh.n_triangles * 49 and ds.sizes["corner"] == 3
+    assert ds["mesh"].attrs["cf_role"] == "mesh_topology"
+    assert np.array_equal(ds["triangles"].values, refine(mesh, "7t-qd", 2).triangles)
+    attrs = ds.attrs["qdrefine"]
+    assert attrs["complete"] is True and attrs["chunk_size"] == 20 and attrs["version"] == 2
+    fs.rm(root, recursive=True)
+
+
+def test_relative_paths_are_made_absolute_for_the_workers(tmp_path, client, monkeypatch):
+    mesh = jittered_grid(2, seed=3)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=3)
+    monkeypatch.chdir(tmp_path)
+    original = qd_cluster._visible  # a remote worker has another working directory:
+    monkeypatch.setattr(qd_cluster, "_visible", lambda s, t: original(s, t) if
+                        os.path.isabs(s) and os.path.isabs(t) else "relative")
+    summary = refine_store("in.zarr", "out.zarr", client=client)
+    assert summary.target == str(tmp_path / "out.zarr")
+    assert_identical(mesh, "7t-qd", 1, store.to_mesh(tmp_path / "out.zarr"))
 
 
 def test_scheduler_address(tmp_path, client):
@@ -109,7 +149,7 @@ def test_scheduler_address(tmp_path, client):
         assert summary.dashboard is None
     else:
         assert summary.dashboard.startswith("http")
-    assert_same_refinement(mesh, "7t-qd", 1, store.to_mesh(tmp_path / "out.zarr"))
+    assert_identical(mesh, "7t-qd", 1, store.to_mesh(tmp_path / "out.zarr"))
 
 
 # bad input ----------------------------------------------------------------------------------
@@ -118,7 +158,7 @@ def test_scheduler_address(tmp_path, client):
 def raw_store(path: Path, points, triangles, edges=None, edge_tags=None, chunk=2) -> Path:
     """A store written without validation (as another tool might write one)."""
     group = zarr.create_group(store=str(path), attributes={
-        "qdrefine": {"format": "mesh", "version": 1, "metadata": {}}})
+        "qdrefine": {"format": "mesh", "version": 2, "complete": True, "metadata": {}}})
     arrays = {"points": np.asarray(points, float), "triangles": np.asarray(triangles)}
     if edges is not None:
         arrays |= {"edges": np.asarray(edges), "edge_tags": np.asarray(edge_tags)}
@@ -143,7 +183,19 @@ def test_invalid_content_is_named(tmp_path, client, points, triangles, edges, me
     bad = raw_store(tmp_path / "bad.zarr", points, triangles, edges, tags)
     with pytest.raises(ValueError, match=message):
         refine_store(bad, tmp_path / "out.zarr", client=client)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.zarr"]  # nothing left behind
+    assert leftovers(tmp_path) == ["bad.zarr"]  # nothing left behind
+
+
+def test_a_needle_far_from_the_origin_is_refused_as_in_memory(tmp_path, client):
+    needle = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1e-9], [0.5, -1.0]]) + 1e7
+    mesh = Mesh(needle, [[0, 1, 2], [0, 3, 1]])
+    with pytest.raises(ValueError, match="too thin"):
+        refine(mesh, "7t-qd")
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=1)
+    with pytest.raises(ValueError, match=r"in.zarr: triangle 0 \(0, 1, 2\) is too thin for "
+                                         r"its distance from the origin"):
+        refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", client=client)
+    assert leftovers(tmp_path) == ["in.zarr"]
 
 
 def test_errors_before_any_work(tmp_path, client):
@@ -163,16 +215,45 @@ def test_errors_before_any_work(tmp_path, client):
         refine_store(good, tmp_path / "out.zarr", levels=-1, client=client)
     with pytest.raises(ValueError, match="not both"):
         refine_store(good, tmp_path / "out.zarr", client=client, address="tcp://x:1")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.zarr", "plain"]
+    assert leftovers(tmp_path) == ["in.zarr", "plain"]
 
 
 def test_paths_the_workers_cannot_see(tmp_path, client, monkeypatch):
-    import qdrefine.distributed as qd
-
     good = store.create(tmp_path / "in.zarr", jittered_grid(2, seed=0)).path
-    monkeypatch.setattr(qd, "_missing", lambda paths: paths[:1])  # as on a remote worker
+    monkeypatch.setattr(qd_cluster, "_visible", lambda s, t: s)  # as on a remote worker
     with pytest.raises(FileNotFoundError, match="in.zarr: not visible from the Dask worker"):
         refine_store(good, tmp_path / "out.zarr", client=client)
+    assert leftovers(tmp_path) == ["in.zarr"]
+
+
+def test_worker_memory_is_checked_before_starting(tmp_path):
+    good = store.create(tmp_path / "in.zarr", jittered_grid(2, seed=0)).path
+    need = min_worker_memory(8) / 2**20  # the mesh's 8 triangles are one chunk
+    with local_client(n_workers=1, processes=False, memory_limit="200MiB",
+                      dashboard_address=":0") as small, \
+            pytest.raises(MemoryError, match=rf"memory limit of 200 MiB; chunks of 8 rows "
+                                             rf"need at least {need:.0f} MiB"):
+        refine_store(good, tmp_path / "out.zarr", client=small)
+    assert leftovers(tmp_path) == ["in.zarr"]
+
+
+def test_paused_workers_stop_the_run_in_bounded_time(tmp_path, client):
+    def pause_above(dask_worker, fraction):  # the workers' own memory monitor pauses them
+        before = dask_worker.memory_manager.memory_pause_fraction
+        dask_worker.memory_manager.memory_pause_fraction = fraction
+        return before
+
+    mesh = jittered_grid(2, seed=0)
+    good = store.create(tmp_path / "in.zarr", mesh, chunk_size=3).path
+    refine_store(good, tmp_path / "out.zarr", levels=0, client=client)
+    before = client.run(pause_above, fraction=1e-9)  # as if their memory were full
+    try:
+        with pytest.raises(ClusterError, match="stayed paused for 1 s: its memory is full"):
+            refine_store(good, tmp_path / "out.zarr", client=client, pause_timeout=1.0)
+    finally:
+        client.run(pause_above, fraction=next(iter(before.values())))
+    assert_identical(mesh, "7t-qd", 0, store.to_mesh(tmp_path / "out.zarr"))  # old target
+    assert leftovers(tmp_path) == ["in.zarr", "out.zarr"]
 
 
 def test_a_failed_refinement_keeps_the_old_target(tmp_path, client):
@@ -182,4 +263,241 @@ def test_a_failed_refinement_keeps_the_old_target(tmp_path, client):
     bad = raw_store(tmp_path / "bad.zarr", SQUARE, GOOD[:3] + [[1, 2, 5]])
     with pytest.raises(ValueError, match="clockwise"):
         refine_store(bad, tmp_path / "out.zarr", client=client)
-    np.testing.assert_array_equal(store.to_mesh(tmp_path / "out.zarr").points, mesh.points)
+    assert_identical(mesh, "7t-qd", 0, store.to_mesh(tmp_path / "out.zarr"))
+    assert leftovers(tmp_path) == ["bad.zarr", "in.zarr", "out.zarr"]
+
+
+# fault injection ----------------------------------------------------------------------------
+# Each run either completes with the identical output or fails with one clear error, leaving
+# the old target as it was and no temporaries.
+
+
+@pytest.fixture(scope="module")
+def process_client():
+    """Two single-thread worker processes under nannies (a killed worker is restarted)."""
+    c = local_client(n_workers=2, processes=True, dashboard_address=":0")
+    yield c
+    c.close()
+
+
+class KillOnce:
+    """A worker plugin: the first worker to start a task whose key contains ``name`` kills
+    its own process with SIGKILL (once per ``marker`` file)."""
+
+    def __init__(self, name: str, marker: str) -> None:
+        self.name, self.marker = name, marker
+
+    def setup(self, worker):
+        self.worker = worker
+
+    def transition(self, key, start, finish, **kwargs):
+        import signal
+
+        if finish != "executing" or self.name not in str(key):
+            return
+        try:
+            os.close(os.open(self.marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+        except FileExistsError:
+            return
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    def teardown(self, worker):
+        pass
+
+
+def outcome_is_clean(run, mesh, levels, tmp_path, old: Mesh) -> str:
+    """``run()``: the new target identical to the in-memory refinement, or a one-line
+    error with the old target kept; never a temporary."""
+    try:
+        run()
+    except (ClusterError, OSError, ValueError) as exc:
+        assert "\n" not in str(exc)
+        assert_identical(old, "7t-qd", 0, store.to_mesh(tmp_path / "out.zarr"))
+        result = "failed"
+    else:
+        assert_identical(mesh, "7t-qd", levels, store.to_mesh(tmp_path / "out.zarr"))
+        result = "completed"
+    assert leftovers(tmp_path) == ["in.zarr", "marker", "out.zarr"]
+    return result
+
+
+def _allow_failures(client, n: int) -> int:
+    def set_allowed(dask_scheduler, n):
+        before, dask_scheduler.allowed_failures = dask_scheduler.allowed_failures, n
+        return before
+
+    return client.run_on_scheduler(set_allowed, n=n)
+
+
+@pytest.mark.parametrize("task,shuffle,retries,expected", [
+    ("shuffle-transfer", True, None, "completed"),  # Dask reruns the P2P shuffle
+    ("_number_pieces", False, None, "completed"),   # mid direct exchange: rerun elsewhere
+    ("_emit_chunk", False, None, "completed"),      # the chunk is written again, elsewhere
+    ("_emit_chunk", False, 0, "failed"),            # KilledWorker at once: one line
+])
+def test_a_worker_killed_mid_shuffle_or_mid_write(tmp_path, process_client, monkeypatch, task,
+                                                  shuffle, retries, expected):
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    from qdrefine.distributed import level
+
+    if shuffle:
+        monkeypatch.setattr(level, "DIRECT_PIECES", 0)
+
+    plugin = type("Kill", (KillOnce, WorkerPlugin), {})(task, str(tmp_path / "marker"))
+    mesh = jittered_grid(3, seed=1)
+    old = jittered_grid(2, seed=2)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=6)
+    store.create(tmp_path / "out.zarr", old)
+    process_client.register_plugin(plugin, name=f"kill-{task}")
+    before = _allow_failures(process_client, retries) if retries is not None else None
+    try:
+        result = outcome_is_clean(lambda: refine_store(tmp_path / "in.zarr",
+                                                       tmp_path / "out.zarr", levels=1,
+                                                       client=process_client),
+                                  mesh, 1, tmp_path, old)
+    finally:
+        process_client.unregister_worker_plugin(f"kill-{task}")
+        if before is not None:
+            _allow_failures(process_client, before)
+    assert (tmp_path / "marker").exists()  # a worker was killed
+    assert result == expected
+
+
+def test_killed_worker_is_one_clear_line(tmp_path, process_client):
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    plugin = type("Kill", (KillOnce, WorkerPlugin), {})("_emit_chunk", str(tmp_path / "m"))
+    store.create(tmp_path / "in.zarr", jittered_grid(3, seed=1), chunk_size=8)
+    process_client.register_plugin(plugin, name="kill-once")
+    before = _allow_failures(process_client, 0)
+    try:
+        with pytest.raises(ClusterError, match=r"^a Dask worker died while running .* \(killed, "
+                                               r"or out of memory\); the run was stopped and "
+                                               r"its temporaries removed$"):
+            refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", client=process_client)
+    finally:
+        process_client.unregister_worker_plugin("kill-once")
+        _allow_failures(process_client, before)
+    assert leftovers(tmp_path) == ["in.zarr", "m"]
+
+
+def test_a_full_disk_leaves_the_old_target(tmp_path, client, monkeypatch):
+    import errno
+
+    from zarr.storage import LocalStore
+
+    mesh, old = jittered_grid(4, seed=1), jittered_grid(2, seed=2)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=5)
+    store.create(tmp_path / "out.zarr", old)
+    (tmp_path / "marker").touch()
+    original = LocalStore.set
+
+    async def full(self, key, value):  # the disk fills when the triangles are written
+        if key.startswith("triangles/c"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return await original(self, key, value)
+
+    monkeypatch.setattr(LocalStore, "set", full)
+    with pytest.raises(OSError, match="No space left on device"):
+        refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", client=client)
+    monkeypatch.undo()
+    assert_identical(old, "7t-qd", 0, store.to_mesh(tmp_path / "out.zarr"))
+    assert leftovers(tmp_path) == ["in.zarr", "marker", "out.zarr"]
+
+
+KILLABLE = """
+import sys
+from qdrefine.distributed import local_client, refine_store
+with local_client(n_workers=2, processes=False, dashboard_address=":0") as c:
+    refine_store(sys.argv[1], sys.argv[2], levels=2, client=c)
+"""
+
+
+def _wait_for_temporary(tmp_path: Path, proc, seconds: float = 60.0) -> Path:
+    import time
+
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and proc.poll() is None:
+        found = [p for p in tmp_path.iterdir() if p.name.startswith(".out.zarr~")]
+        if found and (found[0] / "_work").exists():
+            time.sleep(0.5)  # well into the run
+            return found[0]
+        time.sleep(0.05)
+    raise AssertionError(f"the run did not start writing (exit {proc.poll()})")
+
+
+def test_a_killed_client_leaves_garbage_the_next_run_removes(tmp_path, client):
+    import signal
+    import subprocess
+    import sys
+
+    mesh, old = jittered_grid(30, seed=1), jittered_grid(2, seed=2)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=400)
+    store.create(tmp_path / "out.zarr", old)
+    proc = subprocess.Popen([sys.executable, "-c", KILLABLE, str(tmp_path / "in.zarr"),
+                             str(tmp_path / "out.zarr")], env={**os.environ},
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    temporary = _wait_for_temporary(tmp_path, proc)
+    proc.send_signal(signal.SIGKILL)  # what SLURM and Kubernetes send last
+    proc.wait(timeout=30)
+    assert temporary.exists()
+    assert not store.is_store(temporary)  # never mistaken for a mesh
+    assert_identical(old, "7t-qd", 0, store.to_mesh(tmp_path / "out.zarr"))
+    small = jittered_grid(2, seed=4)
+    store.create(tmp_path / "in.zarr", small, chunk_size=3)
+    refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", client=client)  # the next run
+    assert_identical(small, "7t-qd", 1, store.to_mesh(tmp_path / "out.zarr"))
+    assert leftovers(tmp_path) == ["in.zarr", "out.zarr"]
+
+
+# an object store --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def s3_bucket():
+    """A local S3 (moto's server) with a bucket; s3:// URLs reach it through fsspec's
+    configuration (this process: the cluster's workers are threads here)."""
+    import logging
+
+    import boto3
+    import fsspec
+    from moto.server import ThreadedMotoServer
+
+    logging.getLogger("werkzeug").setLevel(logging.ERROR)
+    server = ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
+    server.start()
+    host, port = server.get_host_and_port()
+    url = f"http://{host}:{port}"
+    credentials = {"aws_access_key_id": "testing", "aws_secret_access_key": "testing"}
+    boto3.client("s3", endpoint_url=url, region_name="us-east-1",
+                 **credentials).create_bucket(Bucket="qd-bucket")
+    before = fsspec.config.conf.get("s3")
+    fsspec.config.conf["s3"] = {"endpoint_url": url, "key": "testing", "secret": "testing",
+                                "client_kwargs": {"region_name": "us-east-1"}}
+    yield "s3://qd-bucket"
+    if before is None:
+        fsspec.config.conf.pop("s3")
+    else:
+        fsspec.config.conf["s3"] = before
+    server.stop()
+
+
+def test_stores_on_s3(s3_bucket, client):
+    mesh, old = jittered_grid(3, seed=9), jittered_grid(2, seed=2)
+    store.create(f"{s3_bucket}/in.zarr", mesh, chunk_size=20)
+    store.create(f"{s3_bucket}/out.zarr", old)
+    refine_store(f"{s3_bucket}/in.zarr", f"{s3_bucket}/out.zarr", levels=2, client=client)
+    assert_identical(mesh, "7t-qd", 2, store.to_mesh(f"{s3_bucket}/out.zarr"))  # replaced
+    fs, root = store.filesystem(s3_bucket)
+    assert sorted(fs.ls(root, detail=False)) == ["qd-bucket/in.zarr", "qd-bucket/out.zarr"]
+    group = zarr.create_group(store=f"{s3_bucket}/bad.zarr", attributes={
+        "qdrefine": {"format": "mesh", "version": 2, "complete": True, "metadata": {}}})
+    group.create_array("points", data=np.asarray(SQUARE, float))
+    group.create_array("triangles", data=np.asarray(GOOD[:3] + [[1, 2, 5]]))
+    with pytest.raises(ValueError, match="clockwise"):  # a failed run keeps the old target
+        refine_store(f"{s3_bucket}/bad.zarr", f"{s3_bucket}/out.zarr", client=client)
+    fs, root = store.filesystem(s3_bucket)
+    assert sorted(fs.ls(root, detail=False)) == ["qd-bucket/bad.zarr", "qd-bucket/in.zarr",
+                                                 "qd-bucket/out.zarr"]
+    assert_identical(mesh, "7t-qd", 2, store.to_mesh(f"{s3_bucket}/out.zarr"))

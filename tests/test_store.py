@@ -143,10 +143,10 @@ def test_streaming_export_of_an_untagged_mesh_and_tag_zero(tmp_path):
 # bad stores ---------------------------------------------------------------------------------
 
 
-def _raw(path: Path, arrays: dict, version=1) -> Path:
+def _raw(path: Path, arrays: dict, version=2) -> Path:
     """A Zarr group written without qdrefine's checks."""
     group = zarr.create_group(store=str(path), attributes={
-        "qdrefine": {"format": "mesh", "version": version, "metadata": {}}})
+        "qdrefine": {"format": "mesh", "version": version, "complete": True, "metadata": {}}})
     for name, value in arrays.items():
         group.create_array(name, data=np.asarray(value))
     return path
@@ -199,6 +199,98 @@ def test_to_mesh_validates_the_content(tmp_path):
 def test_store_layout_is_documented(tmp_path):
     store.create(tmp_path / "m.zarr", jittered_grid(2, 0), chunk_size=4)
     meta = json.loads((tmp_path / "m.zarr" / "zarr.json").read_text())
-    assert meta["attributes"]["qdrefine"] == {"format": "mesh", "version": 1, "metadata": {}}
+    assert meta["attributes"]["qdrefine"] == {
+        "format": "mesh", "version": 2, "complete": True, "chunk_size": 4,
+        "qdrefine_version": qdrefine.__version__, "metadata": {}}
+    consolidated = meta["consolidated_metadata"]["metadata"]
+    assert consolidated["mesh"]["attributes"]["cf_role"] == "mesh_topology"
+    for name, dims in store.DIMENSIONS.items():
+        assert consolidated[name]["dimension_names"] == list(dims)
     names = sorted(p.name for p in (tmp_path / "m.zarr").iterdir() if p.is_dir())
-    assert names == sorted(FIELDS)
+    assert names == sorted(FIELDS + ("mesh",))
+
+
+def test_xarray_opens_a_store(tmp_path):
+    import xarray as xr
+
+    mesh = examples.plate_with_hole()
+    store.create(tmp_path / "m.zarr", mesh, chunk_size=100)
+    ds = xr.open_zarr(tmp_path / "m.zarr")
+    assert dict(ds.sizes) == {"node": mesh.n_points, "xy": 2, "face": mesh.n_triangles,
+                              "corner": 3, "edge": len(mesh.edges), "end": 2}
+    np.testing.assert_array_equal(ds["triangles"].values, mesh.triangles)
+    np.testing.assert_array_equal(ds["cell_tags"].values, mesh.cell_tags)
+    assert ds["mesh"].attrs["face_node_connectivity"] == "triangles"
+
+
+def test_unwritten_chunks_fail_validation_and_incomplete_stores_are_refused(tmp_path):
+    group = store.new_group(str(tmp_path / "half.zarr"), {
+        "points": ((3, 2), np.float64), "triangles": ((2, 3), np.int32)}, 1)
+    group["points"][:] = GOOD["points"]
+    group["triangles"][:1] = GOOD["triangles"]  # row 1 never written
+    with pytest.raises(ValueError, match="half.zarr: incomplete mesh store"):
+        store.open(tmp_path / "half.zarr")
+    assert not store.is_store(tmp_path / "half.zarr")
+    assert store.is_store(tmp_path / "half.zarr", complete=False)  # may be replaced
+    store.finish(str(tmp_path / "half.zarr"))  # even if marked complete by mistake:
+    with pytest.raises(ValueError, match="half.zarr: .*triangle 1 .*-1"):
+        store.to_mesh(tmp_path / "half.zarr")
+    group = store.new_group(str(tmp_path / "nan.zarr"), {
+        "points": ((3, 2), np.float64), "triangles": ((1, 3), np.int32)}, 2)
+    group["triangles"][:] = GOOD["triangles"]
+    store.finish(str(tmp_path / "nan.zarr"))
+    with pytest.raises(ValueError, match="nan.zarr: .*non-finite"):
+        store.to_mesh(tmp_path / "nan.zarr")
+
+
+def test_stores_at_memory_urls(tmp_path):
+    mesh = jittered_grid(3, seed=5)
+    s = store.create("memory://qd-store-test/m.zarr/", mesh, chunk_size=7)
+    assert s.path == "memory://qd-store-test/m.zarr"
+    same_mesh(mesh, store.to_mesh("memory://qd-store-test/m.zarr"))
+    store.create("memory://qd-store-test/m.zarr", examples.square(2))  # replaced
+    same_mesh(examples.square(2), store.to_mesh("memory://qd-store-test/m.zarr"))
+    fs, root = store.filesystem("memory://qd-store-test")
+    assert fs.ls(root, detail=False) == ["/qd-store-test/m.zarr"]  # no temporary left
+    store.to_file("memory://qd-store-test/m.zarr", tmp_path / "m.msh")
+    same_mesh(examples.square(2), qdrefine.read(tmp_path / "m.msh"))
+    fs.rm(root, recursive=True)
+
+
+def test_relative_paths_become_absolute(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    s = store.create("m.zarr", examples.square(2))
+    assert s.path == str(tmp_path / "m.zarr")
+    assert store.location("s3://bucket/a.zarr/") == "s3://bucket/a.zarr"
+
+
+def test_temporaries_of_dead_runs_are_cleaned(tmp_path):
+    import socket
+    import subprocess
+    import sys
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True).stdout.strip()
+    host = socket.gethostname()
+    names = {
+        f".m.zarr~{host}~{dead}~0a1b2c3d.tmp": True,         # this host, process gone
+        f".m.zarr~{host}~{os.getpid()}~0a1b2c3d.tmp": False,  # a live run
+        f".m.zarr~elsewhere~{dead}~0a1b2c3d.tmp": False,     # another host: unknown
+        ".m.zarr.ab12cd34.tmp": True,                        # older versions' names
+        ".m.zarr.ab12cd34.work": True,
+        ".other.zarr.ab12cd34.tmp": False,                   # another target's
+        "m.zarr.bak": False,
+    }
+    for name in names:
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "zarr.json").write_text("{}")
+    removed = store.clean(tmp_path / "m.zarr")
+    assert sorted(Path(r).name for r in removed) == sorted(n for n, gone in names.items()
+                                                           if gone)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(n for n, gone in names.items()
+                                                               if not gone)
+    store.create(tmp_path / "m.zarr", examples.square(2))  # the next write cleans too
+    removed = store.clean(tmp_path / "m.zarr", everything=True)
+    assert sorted(Path(r).name for r in removed) == sorted(
+        [f".m.zarr~{host}~{os.getpid()}~0a1b2c3d.tmp", f".m.zarr~elsewhere~{dead}~0a1b2c3d.tmp"])
+    assert store.is_store(tmp_path / "m.zarr")

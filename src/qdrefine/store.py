@@ -1,15 +1,23 @@
-"""Chunked on-disk meshes: a Zarr (v3) group of row-chunked arrays, opened lazily with Dask.
+"""Chunked meshes: a Zarr (v3) group of row-chunked arrays at any URL Zarr accepts, opened
+lazily with Dask.
 
-A store is a directory (``name.zarr``) holding the arrays of a :class:`~qdrefine.Mesh`::
+A store is a Zarr group (a local directory ``name.zarr``, or ``memory://``, ``s3://``,
+``gs://`` ... through fsspec) holding the arrays of a :class:`~qdrefine.Mesh`::
 
-    points     (N, 2) float64          chunks (C, 2)   (every array: Blosc LZ4, shuffled)
-    triangles  (M, 3) int32 or int64   chunks (C, 3)   counter-clockwise
-    cell_tags  (M,)   int64            chunks (C,)     optional
-    edges      (K, 2) int32 or int64   chunks (C, 2)   optional, with edge_tags
-    edge_tags  (K,)   int64            chunks (C,)     optional, with edges
+    points     (N, 2) float64          dims (node, xy)       fill NaN
+    triangles  (M, 3) int32 or int64   dims (face, corner)   fill -1, counter-clockwise
+    cell_tags  (M,)   int64            dims (face,)          optional
+    edges      (K, 2) int32 or int64   dims (edge, end)      fill -1, optional, with edge_tags
+    edge_tags  (K,)   int64            dims (edge,)          optional, with edges
+    mesh       ()     int32            UGRID mesh topology (attributes only)
 
-and the group attribute ``qdrefine = {"format": "mesh", "version": 1, "metadata": {...}}``.
-``C`` is the chunk size in rows (:data:`DEFAULT_CHUNK_SIZE` unless chosen).
+chunked by ``C`` rows (:data:`DEFAULT_CHUNK_SIZE` unless chosen), Blosc LZ4 with byte
+shuffle, with Zarr ``dimension_names`` and consolidated metadata, so that
+``xarray.open_zarr`` opens a store. The group attribute ``qdrefine`` holds ``{"format":
+"mesh", "version": 2, "complete": true, "chunk_size": C, "qdrefine_version": ...,
+"metadata": {...}}``; ``complete`` is written last, after every chunk, and :func:`open`
+refuses a store without it. Unwritten chunks read as the fill values, which no valid mesh
+has (a NaN coordinate, a vertex index -1).
 
 :func:`create` writes a mesh, :func:`open` returns a :class:`MeshStore` of Dask arrays
 without reading any data, :func:`to_mesh` loads (and validates) a store as a ``Mesh``.
@@ -21,17 +29,22 @@ without reading any data, :func:`to_mesh` loads (and validates) a store as a ``M
 * every other conversion holds the whole mesh in memory (meshio reads and writes whole
   meshes; qdrefine validates a mesh file as a whole when reading it).
 
-Stores are written atomically: into a temporary directory next to the target, which then
-replaces it. An existing *store* is replaced; any other existing file or directory is
-refused. Dask and Zarr are imported only when a function here is called.
+Stores are written through a temporary store next to the target, named
+``.NAME~HOST~PID~TOKEN.tmp``, which replaces the target when complete (an existing *store*
+is replaced; any other existing file or directory is refused). On a local filesystem the
+replacement is a rename; on object stores, which cannot rename, the new store is moved
+object by object with its root ``zarr.json`` last, after the old target's was removed: the
+target is then complete or absent, never half-written. A run killed before the end leaves
+its temporary store, which the next write to the same target removes when its process is
+gone (same host), as does :func:`clean`. Dask and Zarr are imported only when a function
+here is called.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import shutil
-import tempfile
+import socket
 import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -48,6 +61,7 @@ if TYPE_CHECKING:
     import dask.array
 
 __all__ = ["MeshStore", "create", "open", "to_mesh", "from_file", "to_file", "is_store",
+           "clean", "location", "filesystem", "new_group", "finish", "remove", "writing",
            "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT"]
 
 PathLike = str | os.PathLike
@@ -58,9 +72,18 @@ DEFAULT_CHUNK_SIZE = 1 << 18
 #: Extensions that :func:`to_file` writes chunk by chunk (everything else: in memory).
 STREAMING_EXPORT = (".msh", ".node", ".ele", ".poly")
 
-FORMAT, VERSION = "mesh", 1
+FORMAT, VERSION = "mesh", 2
+#: Versions :func:`open` reads (version 1: no completion attribute, written by rename only).
+READABLE = (1, 2)
 ARRAYS = ("points", "triangles", "cell_tags", "edges", "edge_tags")
 _COLUMNS = {"points": 2, "triangles": 3, "cell_tags": 0, "edges": 2, "edge_tags": 0}
+#: Zarr dimension names of every array (xarray needs them; shared names share sizes).
+DIMENSIONS = {"points": ("node", "xy"), "triangles": ("face", "corner"),
+              "cell_tags": ("face",), "edges": ("edge", "end"), "edge_tags": ("edge",)}
+#: Fill values of unwritten chunks: never valid (tags: the smallest int64).
+FILL = {"points": float("nan"), "triangles": -1, "edges": -1,
+        "cell_tags": int(np.iinfo(np.int64).min), "edge_tags": int(np.iinfo(np.int64).min)}
+_TMP, _OLD = ".tmp", ".old"
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,7 +92,8 @@ class MeshStore:
 
     Attributes
     ----------
-    path : Path
+    path : str
+        The store's URL, or its absolute path for a local store (:func:`location`).
     points : (N, 2) float64 dask array
     triangles : (M, 3) int dask array
     cell_tags : (M,) int64 dask array or None
@@ -80,7 +104,7 @@ class MeshStore:
         scheme and levels there).
     """
 
-    path: Path
+    path: str
     points: dask.array.Array
     triangles: dask.array.Array
     cell_tags: dask.array.Array | None
@@ -110,7 +134,7 @@ class MeshStore:
         """The Zarr array ``name`` (for chunk-wise reading in tasks)."""
         import zarr
 
-        return zarr.open_group(str(self.path), mode="r")[name]
+        return zarr.open_group(self.path, mode="r")[name]
 
     def to_mesh(self) -> Mesh:
         return to_mesh(self)
@@ -118,8 +142,50 @@ class MeshStore:
     def __repr__(self) -> str:
         tags = "" if self.cell_tags is None else ", cell tags"
         edges = "" if self.edges is None else f", {self.n_edges} tagged edges"
-        return (f"MeshStore({str(self.path)!r}: {self.n_points} points, {self.n_triangles} "
+        return (f"MeshStore({self.path!r}: {self.n_points} points, {self.n_triangles} "
                 f"triangles{tags}{edges}, chunks of {self.chunk_size})")
+
+
+# --------------------------------------------------------------------------------------------
+# locations
+
+
+def location(path: PathLike) -> str:
+    """``path`` as the string every process can use: a URL (``scheme://...``) unchanged but
+    for a trailing ``/``, a local path made absolute.
+
+    >>> location("memory://a/b.zarr/")
+    'memory://a/b.zarr'
+    """
+    text = os.fspath(path)
+    if "://" in text:
+        return text.rstrip("/")
+    return os.path.abspath(text)
+
+
+def is_local(url: str) -> bool:
+    """Whether ``url`` (from :func:`location`) is a local path."""
+    return "://" not in url or url.startswith("file://")
+
+
+def filesystem(url: str):
+    """``(fsspec filesystem, path within it)`` of ``url``, with no stale listings cached
+    (object stores' filesystems cache directory listings that other writers change)."""
+    import fsspec
+
+    fs, root = fsspec.core.url_to_fs(url)
+    fs.invalidate_cache()
+    return fs, root
+
+
+def _join(url: str, name: str) -> str:
+    return f"{url}/{name}"
+
+
+def _split(url: str) -> tuple[str, str]:
+    """``(parent URL, name)``."""
+    parent, _, name = url.rpartition("/")
+    return parent, name
 
 
 # --------------------------------------------------------------------------------------------
@@ -128,12 +194,13 @@ class MeshStore:
 
 def create(path: PathLike, mesh: Mesh, chunk_size: int = DEFAULT_CHUNK_SIZE,
            metadata: Mapping[str, Any] | None = None) -> MeshStore:
-    """Write ``mesh`` as a store at ``path`` (atomically) and open it.
+    """Write ``mesh`` as a store at ``path`` (complete or absent) and open it.
 
     Parameters
     ----------
     path : str or os.PathLike
-        Directory to create (by convention ``name.zarr``); an existing store is replaced.
+        Local directory to create (by convention ``name.zarr``) or URL; an existing store
+        is replaced.
     mesh : Mesh
     chunk_size : int, > 0
         Rows per chunk of every array.
@@ -152,41 +219,61 @@ def create(path: PathLike, mesh: Mesh, chunk_size: int = DEFAULT_CHUNK_SIZE,
     if not isinstance(mesh, Mesh):
         raise TypeError(f"create() needs a Mesh, got {type(mesh).__name__}")
     chunk_size = _chunk_size(chunk_size)
-    path = Path(path)
+    url = location(path)
     arrays = {name: getattr(mesh, name) for name in ARRAYS}
-    with writing(path) as tmp:
+    with writing(url) as tmp:
         group = new_group(tmp, {k: _spec(v) for k, v in arrays.items()}, chunk_size,
                           metadata)
         for name, value in arrays.items():
             if value is not None and len(value):
                 group[name][...] = value
-    return open(path)
+    return open(url)
 
 
 def _spec(value: NDArray | None) -> tuple[tuple[int, ...], np.dtype] | None:
     return None if value is None else (value.shape, value.dtype)
 
 
-def new_group(path: Path, specs: Mapping[str, tuple[tuple[int, ...], Any] | None],
+def new_group(url: str, specs: Mapping[str, tuple[tuple[int, ...], Any] | None],
               chunk_size: int | Mapping[str, int], metadata: Mapping[str, Any] | None = None):
-    """An empty store at ``path``: ``specs`` maps array names to ``(shape, dtype)`` or None.
+    """An empty, incomplete store at ``url``: ``specs`` maps array names to
+    ``(shape, dtype)`` or None.
 
     ``chunk_size`` is the rows per chunk of every array, or a mapping per array name.
-    Returns the Zarr group, ready for chunk-wise writes (used by
-    :mod:`qdrefine.distributed`).
+    Returns the Zarr group, ready for chunk-wise writes; :func:`writing` marks it complete.
     """
     import zarr
 
-    attrs = {"format": FORMAT, "version": VERSION, "metadata": dict(metadata or {})}
-    group = zarr.create_group(store=str(path), attributes={"qdrefine": attrs})
+    from . import __version__
+
+    rows = {name: chunk_size[name] if isinstance(chunk_size, Mapping) else chunk_size
+            for name, spec in specs.items() if spec is not None}
+    attrs = {"format": FORMAT, "version": VERSION, "complete": False,
+             "chunk_size": _chunk_size(rows["triangles"]), "qdrefine_version": __version__,
+             "metadata": dict(metadata or {})}
+    group = zarr.create_group(store=url, attributes={"qdrefine": attrs})
     for name, spec in specs.items():
         if spec is not None:
             shape, dtype = spec
-            rows = chunk_size[name] if isinstance(chunk_size, Mapping) else chunk_size
-            chunks = (_chunk_size(rows),) + tuple(shape[1:])
-            group.create_array(name, shape=shape, chunks=chunks, dtype=dtype, fill_value=0,
-                               compressors=_compressor())
+            chunks = (_chunk_size(rows[name]),) + tuple(shape[1:])
+            group.create_array(name, shape=shape, chunks=chunks, dtype=dtype,
+                               fill_value=FILL[name], compressors=_compressor(),
+                               dimension_names=DIMENSIONS[name])
+    group.create_array("mesh", shape=(), dtype=np.int32, fill_value=0,
+                       attributes=_ugrid(specs))
     return group
+
+
+def _ugrid(specs: Mapping[str, Any]) -> dict[str, Any]:
+    """UGRID-style attributes of the ``mesh`` topology variable (node coordinates are the
+    two columns of ``points``, not separate ``node_x``/``node_y`` variables)."""
+    attrs = {"cf_role": "mesh_topology", "long_name": "2D triangle mesh (qdrefine)",
+             "topology_dimension": 2, "node_dimension": "node", "face_dimension": "face",
+             "node_coordinates": "points", "face_node_connectivity": "triangles",
+             "start_index": 0}
+    if specs.get("edges") is not None:
+        attrs |= {"edge_dimension": "edge", "edge_node_connectivity": "edges"}
+    return attrs
 
 
 def _compressor():
@@ -203,79 +290,193 @@ def _chunk_size(value: object) -> int:
     return int(value)
 
 
+def finish(url: str) -> None:
+    """Mark the store at ``url`` complete and consolidate its metadata: the last write."""
+    import zarr
+
+    group = zarr.open_group(url, mode="r+", use_consolidated=False)
+    attrs = dict(group.attrs["qdrefine"])
+    attrs["complete"] = True
+    group.attrs["qdrefine"] = attrs
+    with warnings.catch_warnings():  # "consolidated metadata is not part of Zarr 3's spec"
+        warnings.simplefilter("ignore", UserWarning)
+        zarr.consolidate_metadata(url)
+
+
 @contextlib.contextmanager
-def writing(path: PathLike) -> Iterator[Path]:
-    """Yield a fresh temporary directory next to ``path``; on success it becomes ``path``.
+def writing(path: PathLike) -> Iterator[str]:
+    """Yield the URL of a fresh temporary store next to ``path``; on success it is marked
+    complete and replaces ``path``.
 
     An existing store at ``path`` is replaced; an existing non-store is refused (before any
-    work). On failure the temporary directory is removed and ``path`` is left as it was.
+    work). Stale temporaries of earlier runs for the same target are removed first
+    (:func:`clean`). On failure the temporary store is removed and ``path`` is left as it
+    was.
     """
-    path = Path(path)
-    _check_target(path)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    url = location(path)
+    _check_target(url)
+    clean(url)
+    tmp = _temporary(url, _TMP)
+    fs, root = filesystem(tmp)
     try:
-        os.chmod(tmp, permission_bits(path, 0o777))
+        if is_local(url):
+            os.mkdir(root, permission_bits(Path(url), 0o777))
+            os.chmod(root, permission_bits(Path(url), 0o777))
         yield tmp
-        _replace(tmp, path)
+        finish(tmp)
+        _replace(tmp, url)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        remove(tmp)
         raise
 
 
-def _check_target(path: Path) -> None:
-    if not path.parent.is_dir():
-        raise FileNotFoundError(f"{path}: directory {path.parent} does not exist")
-    if path.exists() and not is_store(path):
-        raise FileExistsError(f"{path}: exists and is not a qdrefine mesh store; refusing to "
+def _temporary(url: str, suffix: str) -> str:
+    """``.NAME~HOST~PID~TOKEN<suffix>`` next to ``url``: who made it, for :func:`clean`."""
+    parent, name = _split(url)
+    host = socket.gethostname().replace("~", "-").replace("/", "-")
+    return _join(parent, f".{name}~{host}~{os.getpid()}~{os.urandom(4).hex()}{suffix}")
+
+
+def _owner(entry: str, name: str) -> tuple[str, int] | None | bool:
+    """For an entry of the target's parent: False if it is not a temporary of ``name``;
+    ``(host, pid)`` of the run that made it; None when unknown (older qdrefine versions
+    named them ``.NAME.XXXXXXXX.tmp`` / ``.work`` / ``.old``)."""
+    if not entry.startswith(f".{name}"):
+        return False
+    rest = entry[len(name) + 1:]
+    if rest.startswith("~") and rest.endswith((_TMP, _OLD)):
+        fields = rest[1:].rsplit(".", 1)[0].split("~")
+        if len(fields) == 3 and fields[1].isdigit():
+            return fields[0], int(fields[1])
+        return False
+    if rest.startswith(".") and rest.endswith((_TMP, _OLD, ".work")) and rest.count(".") == 2:
+        return None
+    return False
+
+
+def _alive(host: str, pid: int) -> bool:
+    """Whether the run ``(host, pid)`` may still be going (another host: assumed so)."""
+    if host != socket.gethostname().replace("~", "-").replace("/", "-"):
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def clean(path: PathLike, everything: bool = False) -> list[str]:
+    """Remove the temporaries that runs writing ``path`` left behind; return their URLs.
+
+    A temporary is removed when the process that made it is gone (same host) or its maker
+    is unknown (older versions); with ``everything``, also those of running processes and
+    of other hosts (when no run for ``path`` is in progress anywhere).
+    """
+    url = location(path)
+    parent, name = _split(url)
+    fs, root = filesystem(parent or "/")
+    try:
+        entries = [e.rstrip("/").rsplit("/", 1)[-1] for e in fs.ls(root, detail=False)]
+    except (FileNotFoundError, NotADirectoryError):
+        return []
+    removed = []
+    for entry in sorted(entries):
+        owner = _owner(entry, name)
+        if owner is False:
+            continue
+        if everything or owner is None or not _alive(*owner):
+            remove(_join(parent, entry))
+            removed.append(_join(parent, entry))
+    return removed
+
+
+def remove(url: str) -> None:
+    """Remove whatever is at ``url`` (a store, a temporary), if anything."""
+    fs, root = filesystem(url)
+    with contextlib.suppress(FileNotFoundError, OSError):
+        fs.rm(root, recursive=True)
+
+
+def _check_target(url: str) -> None:
+    fs, root = filesystem(url)
+    if is_local(url):
+        parent = os.path.dirname(root)
+        if not os.path.isdir(parent):
+            raise FileNotFoundError(f"{url}: directory {parent} does not exist")
+    if fs.exists(root) and not is_store(url, complete=False):
+        raise FileExistsError(f"{url}: exists and is not a qdrefine mesh store; refusing to "
                               "replace it")
 
 
-def _replace(tmp: Path, path: Path) -> None:
-    if not path.exists():
-        os.rename(tmp, path)
+def _replace(tmp: str, url: str) -> None:
+    fs, root = filesystem(url)
+    _, tmp_root = filesystem(tmp)
+    if is_local(url):
+        if not os.path.exists(root):
+            os.rename(tmp_root, root)
+            return
+        old = filesystem(_temporary(url, _OLD))[1]
+        os.rename(root, old)
+        os.rename(tmp_root, root)
+        remove(old)
         return
-    old = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old", dir=path.parent))
-    os.rename(path, old / "store")
-    os.rename(tmp, path)
-    shutil.rmtree(old, ignore_errors=True)
+    # object stores: no rename. The old target's root zarr.json goes first (it is no longer
+    # a store), the new one's last (it becomes one only when everything else is there).
+    if fs.exists(root):
+        with contextlib.suppress(FileNotFoundError):
+            fs.rm(f"{root}/zarr.json")
+        fs.rm(root, recursive=True)
+    files = sorted(fs.find(tmp_root))
+    head = f"{tmp_root}/zarr.json"
+    for f in [f for f in files if f != head] + [head]:
+        fs.mv(f, root + f[len(tmp_root):])
+    remove(tmp)
 
 
 # --------------------------------------------------------------------------------------------
 # opening
 
 
-def is_store(path: PathLike) -> bool:
-    """Whether ``path`` is a directory holding a qdrefine mesh store."""
+def is_store(path: PathLike, complete: bool = True) -> bool:
+    """Whether ``path`` holds a qdrefine mesh store (``complete=False``: also one that a
+    run did not finish)."""
     try:
-        _group(Path(path))
+        _group(location(path), complete)
     except (OSError, ValueError):
         return False
     return True
 
 
-def _group(path: Path):
+def _group(url: str, complete: bool = True):
     import zarr
 
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such mesh store")
-    if not path.is_dir():
-        raise ValueError(f"{path}: not a mesh store (a store is a directory, this is a file)")
+    fs, root = filesystem(url)
+    if not fs.exists(root):
+        raise FileNotFoundError(f"{url}: no such mesh store")
+    if fs.isfile(root):
+        raise ValueError(f"{url}: not a mesh store (a store is a directory, this is a file)")
     try:
-        group = zarr.open_group(str(path), mode="r")
-    except (FileNotFoundError, ValueError, KeyError):
-        raise ValueError(f"{path}: not a mesh store (no Zarr group)") from None
+        group = zarr.open_group(url, mode="r")
+    except (FileNotFoundError, ValueError, KeyError, TypeError):
+        raise ValueError(f"{url}: not a mesh store (no Zarr group)") from None
     attrs = group.attrs.get("qdrefine")
     if not isinstance(attrs, dict) or attrs.get("format") != FORMAT:
-        raise ValueError(f"{path}: not a qdrefine mesh store (Zarr group without the "
+        raise ValueError(f"{url}: not a qdrefine mesh store (Zarr group without the "
                          "'qdrefine' attribute)")
-    if attrs.get("version") != VERSION:
-        raise ValueError(f"{path}: mesh store version {attrs.get('version')!r} is not "
-                         f"supported (this qdrefine reads version {VERSION})")
+    if attrs.get("version") not in READABLE:
+        raise ValueError(f"{url}: mesh store version {attrs.get('version')!r} is not "
+                         f"supported (this qdrefine reads versions "
+                         f"{', '.join(map(str, READABLE))})")
+    if complete and attrs.get("version") != 1 and attrs.get("complete") is not True:
+        raise ValueError(f"{url}: incomplete mesh store (the run writing it did not finish); "
+                         "write it again, or remove it")
     return group
 
 
 def open(path: PathLike) -> MeshStore:
-    """Open the store at ``path`` lazily (Dask arrays; nothing is loaded).
+    """Open the store at ``path`` (local path or URL) lazily (Dask arrays; nothing loaded).
 
     The arrays' names, shapes and dtypes are checked here; their content (index ranges,
     orientation, coordinates, tagged edges) when the mesh is loaded by :func:`to_mesh` or
@@ -286,23 +487,23 @@ def open(path: PathLike) -> MeshStore:
     FileNotFoundError
         Nothing at ``path``.
     ValueError
-        ``path`` is not a qdrefine mesh store, or an array is missing or malformed; the
-        message names the store and the array.
+        ``path`` is not a complete qdrefine mesh store, or an array is missing or
+        malformed; the message names the store and the array.
     """
     import dask.array as da
 
-    path = Path(path)
-    group = _group(path)
+    url = location(path)
+    group = _group(url)
     present = set(group.array_keys())
     arrays: dict[str, Any] = {}
     for name in ARRAYS:
         arrays[name] = da.from_zarr(group[name]) if name in present else None
-    _check_arrays(path, arrays)
+    _check_arrays(url, arrays)
     metadata = dict(group.attrs["qdrefine"].get("metadata") or {})
-    return MeshStore(path, metadata=metadata, **arrays)
+    return MeshStore(url, metadata=metadata, **arrays)
 
 
-def _check_arrays(path: Path, arrays: Mapping[str, Any]) -> None:
+def _check_arrays(path: str, arrays: Mapping[str, Any]) -> None:
     for name in ("points", "triangles"):
         if arrays[name] is None:
             raise ValueError(f"{path}: the store has no '{name}' array")

@@ -18,14 +18,14 @@ __all__ = ["main", "COMMANDS"]
 
 #: Subcommands in the order ``--help`` lists them (module ``qdrefine.cli.<name>``).
 COMMANDS: tuple[str, ...] = (
-    "refine", "check", "info", "quality", "plot", "compare", "convert", "demo", "diagram",
-    "paper",
+    "refine", "check", "info", "quality", "plot", "compare", "convert", "clean", "demo",
+    "diagram", "paper",
 )
 
 
 #: Top-level packages of optional extras, and the extra that installs each.
-OPTIONAL = {"dask": "dask", "distributed": "dask", "zarr": "dask", "scipy": "paper",
-            "sympy": "paper"}
+OPTIONAL = {"dask": "dask", "distributed": "dask", "zarr": "dask", "fsspec": "dask",
+            "scipy": "paper", "sympy": "paper"}
 
 
 def _parser() -> argparse.ArgumentParser:

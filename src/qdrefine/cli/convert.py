@@ -17,9 +17,10 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                      "Triangle files streams chunk by chunk. Example: qdrefine convert "
                      "in.msh in.zarr; qdrefine refine in.zarr out.zarr --dask; qdrefine "
                      "convert out.zarr out.msh --binary")
-    parser.add_argument("input", metavar="IN", help="mesh file or .zarr store (never modified)")
-    parser.add_argument("output", metavar="OUT", help="mesh file or .zarr store to write "
-                        "(written atomically)")
+    parser.add_argument("input", metavar="IN", help="mesh file or .zarr store, a path or a "
+                        "URL such as s3://bucket/in.zarr (never modified)")
+    parser.add_argument("output", metavar="OUT", help="mesh file or .zarr store (path or URL) "
+                        "to write (complete or absent)")
     parser.add_argument("--binary", action="store_true",
                         help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply")
     parser.add_argument("--chunk-size", type=_positive, default=None, metavar="ROWS",
@@ -28,9 +29,14 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     with _common.session():
-        _common.check_output(args.output, (args.input,), kinds="any", binary=args.binary)
         from_store = _is_store_name(args.input)
         to_store = _is_store_name(args.output)
+        if "://" in args.output:  # a URL: only stores, and no local checks apply
+            if not to_store or args.binary:
+                raise ValueError(f"{args.output}: a URL must name a Zarr store (ending in "
+                                 f"{_common.STORE}), without --binary")
+        else:
+            _common.check_output(args.output, (args.input,), kinds="any", binary=args.binary)
         if args.chunk_size is not None and not to_store:
             raise ValueError("--chunk-size applies to a .zarr output only")
         if from_store or to_store:

@@ -131,9 +131,14 @@ def _on_dask(args: argparse.Namespace) -> int:
     from ..store import is_store
 
     if not is_store(args.input):
-        raise ValueError(f"{args.input}: --dask needs a Zarr mesh store as IN; make one with "
-                         f"'qdrefine convert {args.input} IN.zarr'")
-    _common.check_output(args.output, (args.input,), kinds="store", binary=args.binary)
+        raise ValueError(f"{args.input}: --dask needs a Zarr mesh store as IN (a path or URL); "
+                         f"make one with 'qdrefine convert {args.input} IN.zarr'")
+    if "://" in args.output:  # a URL (s3://, memory://, ...): no local checks apply
+        if not args.output.rstrip("/").lower().endswith(_common.STORE) or args.binary:
+            raise ValueError(f"{args.output}: expected a Zarr mesh store (a name ending in "
+                             f"{_common.STORE}), without --binary")
+    else:
+        _common.check_output(args.output, (args.input,), kinds="store", binary=args.binary)
     levels = 1 if args.levels is None else args.levels
     with _common.Progress(1, args.quiet) as bar:
         def progress(text: str, done: int, total: int) -> None:  # noqa: ARG001

@@ -1,0 +1,696 @@
+"""One level of uniform refinement of a mesh store on Dask, numbered as in memory.
+
+Every array is cut into the source's triangle chunks (``C`` rows); no task holds more than
+about one chunk. Intermediate data stays in Dask (shuffles, results held by the workers)
+or in Zarr arrays under the run's temporary store, never in local files. The stages:
+
+1. **corners** (first level only): the rows ``(h = 3t + i, v_i)`` of every triangle chunk
+   are merged with the points on ``v`` (``dask.dataframe``) and shuffled back by ``h``
+   (``set_index`` with the chunk boundaries as divisions) into a Zarr array
+   ``coords (M, 3, 2)`` of corner coordinates. Later levels get it from the previous
+   level's emission.
+2. **edge ids**: in memory, edge ``(lo, hi)`` (``lo < hi``) gets its rank in the sorted
+   list of distinct edges (:mod:`qdrefine.numbering`). Here every triangle chunk lists its
+   *distinct* edges as rows ``(key = lo * N + hi, chunk, coordinates of lo and hi)``: an
+   edge inside a chunk is sent once, not once per half-edge. The rows are
+   **range-partitioned** on ``key`` (``set_index`` with divisions at vertex boundaries,
+   chosen from a histogram of ``lo`` so that partitions are about the same size), so
+   partition ``p`` holds a contiguous range of the sorted keys. It numbers its distinct keys
+   ``0 .. u_p - 1`` in order and computes their new points with the in-memory kernel
+   :func:`qdrefine.kernels.edge_points`; with ``offset_p`` the prefix sums of the ``u_p``
+   (the only numbers gathered on the client), ``offset_p + local id`` is the edge's rank
+   among all keys: exactly the in-memory id, whatever the chunk size or worker count.
+3. **emission**: the ``(chunk, key, p, local id)`` rows are shuffled back to their chunks;
+   each triangle chunk looks its half-edges up, runs the in-memory kernel
+   :func:`qdrefine.kernels.emit` on its own vertices (renumbered by rank, which keeps the
+   kernel's ``a < b`` comparisons) and writes its ``T`` children per triangle, rows
+   ``t T .. t T + T - 1``, with the inherited cell tags (and, for a next level, their corner
+   coordinates); each tagged edge chunk is split by
+   :func:`qdrefine.refine.split_tagged_edges`. The points (old points, then the new points
+   of the partitions in key order) are rechunked and written chunk by chunk.
+
+Every write covers whole Zarr chunks, so no two tasks write the same chunk.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+from collections.abc import Iterator, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import store as mesh_store
+from ..kernels import edge_points, emit
+from ..mesh import index_dtype
+from ..predicates import check_coordinates, orient_signs
+from ..refine import split_tagged_edges
+from ..schemes import Scheme, get_scheme
+from . import cluster
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from distributed import Client
+
+__all__ = ["Level", "MAX_POINTS", "copy_store"]
+
+#: Edge keys ``lo * N + hi`` are int64: at most this many points per level.
+MAX_POINTS = 3_037_000_499
+
+#: Bins of the histogram of smaller vertices that places the edge partitions' boundaries.
+_BINS = 4096
+
+#: Exchanges of at most this many pieces (sources x destinations) go directly from task to
+#: task (NumPy arrays, one small task per piece); larger ones through Dask's P2P shuffle.
+DIRECT_PIECES = 5_000
+
+
+def _bounds(n: int, chunk: int) -> list[tuple[int, int]]:
+    """Row ranges ``[(start, stop)]`` of ``n`` rows in chunks of ``chunk``."""
+    return [(a, min(n, a + chunk)) for a in range(0, n, chunk)]
+
+
+def _divisions(ranges: Sequence[tuple[int, int]], per_row: int) -> tuple[int, ...]:
+    """Dask divisions putting the values ``per_row * [start, stop)`` in one partition each."""
+    return tuple(per_row * a for a, _ in ranges) + (per_row * ranges[-1][1] - 1,)
+
+
+class _Job:
+    """What the tasks of one level share: the source's, coordinates' and output's Zarr
+    arrays, the scheme and the sizes. Plain (not a dataclass) so that Dask passes it as an
+    opaque argument; its token is random (one per level)."""
+
+    def __init__(self, src: mesh_store.MeshStore, sch: Scheme, coords: str,
+                 next_coords: str | None) -> None:
+        import os
+
+        import zarr
+
+        group = zarr.open_group(src.path, mode="r")
+        self.src = {name: group[name] for name in mesh_store.ARRAYS if name in group}
+        self.out: dict[str, Any] = {}
+        self.path, self.scheme = src.path, sch.name
+        self.n, self.m, self.n_out = src.n_points, src.n_triangles, 0
+        self.k, self.children = sch.stencil.per_edge, sch.n_children
+        self.chunk = int(self.src["triangles"].chunks[0])
+        self.n_chunks = -(-self.m // self.chunk)
+        self.coords_url, self.next_coords_url = coords, next_coords
+        self.coords: Any = None
+        self.next_coords: Any = None
+        self.level = 1
+        self.token = os.urandom(16).hex()
+
+    def __dask_tokenize__(self) -> str:
+        return self.token
+
+
+def _coords_array(url: str, m: int, chunk: int, create: bool):
+    import zarr
+
+    if create:
+        return zarr.create_array(url, shape=(m, 3, 2), chunks=(chunk, 3, 2), dtype=np.float64,
+                                 fill_value=np.nan, compressors=None)
+    return zarr.open_array(url, mode="r")
+
+
+class _Direct(list):
+    """The edge partitions' futures when their results go back directly (not shuffled)."""
+
+
+class Level:
+    """One level of refinement of ``src`` into a new (incomplete) store at ``out``.
+
+    ``coords`` is the URL of the Zarr array of corner coordinates; from ``level`` 2 on it
+    is already written (by the previous level's emission). With ``next_coords``, the
+    emission writes the children's corner coordinates there.
+    """
+
+    def __init__(self, client: Client, src: mesh_store.MeshStore, sch: Scheme, out: str,
+                 coords: str, next_coords: str | None, level: int,
+                 metadata: dict[str, Any], report: cluster.Reporter,
+                 timeouts: dict[str, float]) -> None:
+        coords_ready = level > 1
+        self.client, self.src, self.sch, self.out = client, src, sch, out
+        self.coords_ready, self.metadata, self.report = coords_ready, metadata, report
+        self.timeouts = timeouts
+        if src.n_points > MAX_POINTS:
+            raise ValueError(f"{report.prefix}{src.n_points} points; distributed refinement "
+                             f"handles at most {MAX_POINTS} per level (int64 edge keys)")
+        job = self.job = _Job(src, sch, coords, next_coords)
+        job.level = level
+        job.coords = _coords_array(coords, job.m, job.chunk, not coords_ready)
+        if next_coords is not None:
+            job.next_coords = _coords_array(next_coords, job.m * job.children, job.chunk, True)
+        self.tri_ranges = _bounds(src.n_triangles, job.chunk)
+        e = job.src.get("edges")
+        self.edge_ranges = _bounds(src.n_edges, int(e.chunks[0])) if src.n_edges else []
+
+    def run(self) -> None:
+        import dask
+
+        with dask.config.set({"dataframe.convert-string": False,
+                              "dataframe.shuffle.method": "p2p"}):
+            if not self.coords_ready:
+                self.report.stage("corner coordinates")
+                self._corners()
+            self.report.stage("edge ids in sorted order and new points")
+            numbered, counts = self._edges()
+            self.direct_back = isinstance(numbered, _Direct)
+            self.report.stage("emission of the children, written chunk by chunk")
+            try:
+                self._emit(numbered, counts)
+            finally:  # the partitions' results are no longer needed (nor recomputed)
+                for future in numbered:
+                    future.release()
+
+    def _compute(self, tasks: list, keep: bool = False) -> list:
+        return cluster.compute(self.client, tasks, keep=keep, **self.timeouts)
+
+    def _corners(self) -> None:
+        """Stage 1: the Zarr array ``coords (M, 3, 2)``."""
+        import dask.dataframe as dd
+        from dask import delayed
+
+        job = self.job
+        p_ranges = _bounds(self.src.n_points, int(job.src["points"].chunks[0]))
+        if len(p_ranges) * len(self.tri_ranges) <= DIRECT_PIECES:
+            self._corners_direct(p_ranges)
+            return
+        points = dd.from_map(_points_frame, p_ranges, job=job, meta=_meta("x", "y"),
+                             divisions=_divisions(p_ranges, 1))
+        corners = dd.from_map(_corners_frame, self.tri_ranges, job=job,
+                              meta=_meta("h", "v", ints=2))
+        joined = corners.merge(points, left_on="v", right_index=True, how="inner")
+        by_tri = joined[["h", "x", "y"]].set_index("h", divisions=_divisions(self.tri_ranges, 3))
+        write = delayed(_write_coords, pure=False)
+        self._compute([write(part, job, a, b) for part, (a, b)
+                       in zip(by_tri.to_delayed(), self.tri_ranges, strict=True)])
+
+    def _corners_direct(self, p_ranges: list[tuple[int, int]]) -> None:
+        """Stage 1 without a shuffle: each triangle chunk asks each points chunk for the
+        coordinates of its vertices there, and writes its corners."""
+        from dask import delayed
+
+        job = self.job
+        starts = np.array([a for a, _ in p_ranges[1:]], dtype=np.int64)
+        ask = delayed(_vertex_requests, pure=False, nout=len(p_ranges))
+        asks = [ask(r, job, starts) for r in self.tri_ranges]
+        answer = delayed(_answer_points, pure=False, nout=len(self.tri_ranges))
+        answers = [answer([q[i] for q in asks], job, a, b) for i, (a, b) in enumerate(p_ranges)]
+        write = delayed(_write_coords_direct, pure=False)
+        self._compute([write([r[j] for r in answers], job, a, b)
+                       for j, (a, b) in enumerate(self.tri_ranges)])
+
+    def _splitters(self) -> tuple[int, ...]:
+        """Divisions of the edge keys: vertex boundaries ``V_i`` (as keys ``V_i N``) that
+        give every partition about the same number of half-edges."""
+        from dask import delayed
+
+        job = self.job
+        hist = delayed(_lo_histogram, pure=False)
+        parts = [hist(r, job) for r in self.tri_ranges]
+        while len(parts) > 1:  # a tree sum: the client receives one histogram
+            parts = [delayed(np.add)(*parts[i:i + 2]) if i + 1 < len(parts) else parts[i]
+                     for i in range(0, len(parts), 2)]
+        counts = self._compute(parts)[0]
+        bins = len(counts)
+        cum = np.cumsum(counts)
+        n_parts = max(1, len(self.tri_ranges))
+        cuts = np.searchsorted(cum, cum[-1] * np.arange(1, n_parts) / n_parts, side="right")
+        vertices = -(-(cuts.astype(np.int64) * job.n) // bins)  # first vertex of bin `cut`
+        vertices = np.unique(vertices[(vertices > 0) & (vertices < job.n)])
+        return (0, *(int(v) * job.n for v in vertices), job.n * job.n - 1)
+
+    def _edges(self) -> tuple[list, NDArray[np.int64]]:
+        """Stage 2: number the edges per key range; returns the partitions' results (held
+        by the workers: count, new points, rows back) and the edges per partition."""
+        import dask.dataframe as dd
+        from dask import delayed
+
+        job = self.job
+        divisions = self._splitters()
+        n_parts = len(divisions) - 1
+        if (job.n_chunks + len(self.edge_ranges)) * n_parts <= DIRECT_PIECES:
+            return self._edges_direct(divisions)
+        meta = _meta("key", "j", "xlo", "ylo", "xhi", "yhi", ints=2)
+        rows = dd.from_map(_edge_frame, list(enumerate(self.tri_ranges)), job=job, meta=meta)
+        if self.edge_ranges:
+            items = [(job.n_chunks + i, r) for i, r in enumerate(self.edge_ranges)]
+            rows = dd.concat([rows, dd.from_map(_tagged_frame, items, job=job, meta=meta)])
+        parts = rows.set_index("key", divisions=divisions, sort=True).to_delayed()
+        number = delayed(_number_edges, pure=False)
+        futures = self._compute([number(part, job, p) for p, part in enumerate(parts)],
+                                keep=True)
+        counts = self.client.gather(self.client.map(_count, futures, pure=False))
+        return futures, np.asarray(counts, dtype=np.int64)
+
+    def _edges_direct(self, divisions: tuple[int, ...]) -> tuple[list, NDArray[np.int64]]:
+        """Stage 2 without a shuffle: every chunk cuts its sorted distinct keys at the
+        divisions, and partition ``p`` receives piece ``p`` of every chunk."""
+        from dask import delayed
+
+        job = self.job
+        cuts = np.array(divisions[1:-1], dtype=np.int64)
+        n_parts = len(divisions) - 1
+        pieces = delayed(_edge_pieces, pure=False, nout=n_parts)
+        sources = [pieces(r, job, cuts) for r in self.tri_ranges]
+        tagged = delayed(_tagged_pieces, pure=False, nout=n_parts)
+        sources += [tagged(r, job, cuts) for r in self.edge_ranges]
+        number = delayed(_number_pieces, pure=False)
+        futures = self._compute([number([src[p] for src in sources], job)
+                                 for p in range(n_parts)], keep=True)
+        counts = self.client.gather(self.client.map(_count, futures, pure=False))
+        return _Direct(futures), np.asarray(counts, dtype=np.int64)
+
+    def _emit(self, numbered: list, counts: NDArray[np.int64]) -> None:
+        """Stage 3: triangles, cell tags, tagged edges and points of the output store."""
+        import dask.array as da
+        from dask import delayed
+
+        job = self.job
+        job.n_out = job.n + job.k * int(counts.sum())
+        group = mesh_store.new_group(self.out, self._specs(job.n_out), self._chunks(),
+                                     self.metadata)
+        job.out = {name: group[name] for name in mesh_store.ARRAYS if name in group}
+        offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        n_targets = job.n_chunks + len(self.edge_ranges)
+        if self.direct_back:
+            lids = delayed(_lids_for, pure=False)
+            parts = [[lids(f, j) for f in numbered] for j in range(n_targets)]
+        else:
+            parts = self._back_shuffle(numbered, n_targets)
+        emit_chunk = delayed(_emit_chunk, pure=False)
+        tasks = [emit_chunk(part, job, offsets, a, b) for part, (a, b)
+                 in zip(parts, self.tri_ranges, strict=False)]
+        split = delayed(_split_chunk, pure=False)
+        tasks += [split(part, job, offsets, a, b) for part, (a, b)
+                  in zip(parts[job.n_chunks:], self.edge_ranges, strict=True)]
+        new = [da.from_delayed(delayed(_new_points_of)(f), shape=(int(c) * job.k, 2),
+                               dtype=np.float64) for f, c in zip(numbered, counts, strict=True)
+               if c]
+        points = da.concatenate([da.from_zarr(job.src["points"])] + new)
+        points = points.rechunk((job.out["points"].chunks[0], 2))
+        tasks.append(da.store(points, job.out["points"], lock=False, compute=False))
+        self._compute(tasks)
+
+    def _back_shuffle(self, numbered: list, n_targets: int) -> list:
+        import dask.dataframe as dd
+        from dask import delayed
+
+        back = dd.from_delayed([delayed(_back_rows)(f) for f in numbered],
+                               meta=_meta("j", "key", "p", "lid", ints=4), verify_meta=False)
+        return back.set_index("j", divisions=(*range(n_targets), n_targets - 1)).to_delayed()
+
+    def _specs(self, n_out: int) -> dict[str, tuple[tuple[int, ...], Any] | None]:
+        src, t, k = self.src, self.sch.n_children, self.job.k
+        specs: dict[str, tuple[tuple[int, ...], Any] | None] = {
+            "points": ((n_out, 2), np.float64),
+            "triangles": ((src.n_triangles * t, 3), index_dtype(n_out)),
+            "cell_tags": None if src.cell_tags is None else ((src.n_triangles * t,), np.int64),
+            "edges": None, "edge_tags": None,
+        }
+        if src.edges is not None:
+            specs["edges"] = ((src.n_edges * (k + 1), 2), index_dtype(n_out))
+            specs["edge_tags"] = ((src.n_edges * (k + 1),), np.int64)
+        return specs
+
+    def _chunks(self) -> dict[str, int]:
+        """The source's chunk sizes (the triangles' also for the cell tags)."""
+        z = self.job.src
+        tri = self.job.chunk
+        edges = int(z["edges"].chunks[0]) if "edges" in z else 1
+        return {"points": int(z["points"].chunks[0]), "triangles": tri, "cell_tags": tri,
+                "edges": edges, "edge_tags": edges}
+
+
+def copy_store(client: Client, src: mesh_store.MeshStore, out: str, metadata: dict[str, Any],
+               timeouts: dict[str, float]) -> None:
+    """``levels = 0``: the source's arrays into ``out``, chunk by chunk."""
+    import dask.array as da
+    import zarr
+
+    group = zarr.open_group(src.path, mode="r")
+    names = [n for n in mesh_store.ARRAYS if n in group]
+    specs = {n: (group[n].shape, group[n].dtype) for n in names}
+    target = mesh_store.new_group(out, specs, {n: int(group[n].chunks[0]) for n in names},
+                                  metadata)
+    sources = [da.from_zarr(group[n]) for n in names]
+    cluster.compute(client, [da.store(sources, [target[n] for n in names], lock=False,
+                                      compute=False)], **timeouts)
+
+
+def _meta(*names: str, ints: int = 0) -> pd.DataFrame:
+    """An empty frame with columns ``names``, the first ``ints`` of them int64, the rest
+    float64 (the rows of each stage, for Dask)."""
+    import pandas as pd
+
+    return pd.DataFrame({name: np.array([], dtype=np.int64 if i < ints else np.float64)
+                         for i, name in enumerate(names)})
+
+
+# --------------------------------------------------------------------------------------------
+# tasks (run on the workers)
+
+
+def _points_frame(rows: tuple[int, int], job: _Job) -> pd.DataFrame:
+    import pandas as pd
+
+    a, b = rows
+    p = job.src["points"][a:b]
+    try:
+        check_coordinates(p)
+    except ValueError as exc:  # the message names the row within the chunk: shift it
+        row = re.match(r"point (\d+) (.*)", str(exc), re.DOTALL)
+        where = f"point {a + int(row[1])} {row[2]}" if row else f"points {a}..{b - 1}: {exc}"
+        raise ValueError(f"{job.path}: {where}") from None
+    return pd.DataFrame({"x": p[:, 0], "y": p[:, 1]}, index=pd.RangeIndex(a, b))
+
+
+def _triangles(job: _Job, a: int, b: int) -> NDArray[np.int64]:
+    """Triangles ``a .. b - 1`` of the source, indices checked."""
+    return _vertex_rows(job, "triangles", "triangle", a, b)
+
+
+def _vertex_rows(job: _Job, name: str, what: str, a: int, b: int) -> NDArray[np.int64]:
+    """Rows ``a .. b - 1`` of the source's ``name`` array as ``int64``; ``ValueError`` naming
+    the first row (a ``what``) with a vertex index outside ``0 .. n - 1``."""
+    rows = job.src[name][a:b].astype(np.int64)
+    bad = ((rows < 0) | (rows >= job.n)).any(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{job.path}: {what} {a + i} {tuple(rows[i].tolist())} has a vertex "
+                         f"index outside 0..{job.n - 1}")
+    return rows
+
+
+def _corners_frame(rows: tuple[int, int], job: _Job) -> pd.DataFrame:
+    import pandas as pd
+
+    a, b = rows
+    t = _triangles(job, a, b)
+    return pd.DataFrame({"h": np.arange(3 * a, 3 * b, dtype=np.int64), "v": t.ravel()})
+
+
+def _in_order(index: NDArray, start: int, stop: int, what: str) -> None:
+    """The shuffle put exactly the rows ``start .. stop - 1`` here, sorted (or it is a bug)."""
+    if len(index) != stop - start or (len(index) and (index[0] != start or index[-1] != stop - 1)):
+        raise RuntimeError(f"qdrefine internal error: {what} rows {start}..{stop - 1} arrived "
+                           f"as {len(index)} rows")
+
+
+def _vertex_requests(rows: tuple[int, int], job: _Job, starts: NDArray[np.int64]
+                     ) -> list[NDArray[np.int64]]:
+    """The distinct vertices of triangles ``rows``, sorted, cut at the points chunks'
+    ``starts``: piece ``i`` goes to points chunk ``i``."""
+    a, b = rows
+    vertices = np.unique(_triangles(job, a, b))
+    return np.split(vertices, np.searchsorted(vertices, starts))
+
+
+def _answer_points(requests: list[NDArray[np.int64]], job: _Job, a: int, b: int
+                   ) -> list[NDArray[np.float64]]:
+    """Points chunk ``a .. b - 1`` (checked) answers every triangle chunk's request."""
+    p = _points_frame((a, b), job)[["x", "y"]].to_numpy(np.float64)
+    return [p[r - a] for r in requests]
+
+
+def _write_coords_direct(answers: list[NDArray[np.float64]], job: _Job, a: int, b: int
+                         ) -> None:
+    t = _triangles(job, a, b)
+    _, inverse = np.unique(t, return_inverse=True)
+    xy = np.concatenate(answers) if answers else np.empty((0, 2))
+    job.coords[a:b] = xy[inverse.reshape(-1)].reshape(-1, 3, 2)
+
+
+def _write_coords(part: pd.DataFrame, job: _Job, a: int, b: int) -> None:
+    _in_order(part.index.to_numpy(), 3 * a, 3 * b, "corner")
+    job.coords[a:b] = part[["x", "y"]].to_numpy(np.float64).reshape(-1, 3, 2)
+
+
+def _lo_histogram(rows: tuple[int, int], job: _Job) -> NDArray[np.int64]:
+    """Half-edges of triangles ``rows`` per bin of their smaller vertex."""
+    a, b = rows
+    t = _triangles(job, a, b)
+    lo = np.minimum(t, np.roll(t, -1, axis=1)).ravel()
+    bins = min(_BINS, job.n)
+    return np.bincount(lo * bins // job.n, minlength=bins).astype(np.int64)
+
+
+def _half_edges(t: NDArray[np.int64], n: int) -> tuple[NDArray, NDArray]:
+    """``keys (C, 3)`` of the half-edges ``(v_i, v_{i+1})`` and whether each is walked from
+    its larger vertex ``(C, 3) bool``."""
+    t2 = np.roll(t, -1, axis=1)
+    return np.minimum(t, t2) * n + np.maximum(t, t2), t > t2
+
+
+def _edge_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
+    """The distinct edges of triangle chunk ``j``: key, ``j``, coordinates of the smaller
+    and of the larger vertex."""
+    import pandas as pd
+
+    j, (a, b) = item
+    t = _triangles(job, a, b)
+    xy = job.coords[a:b]
+    if np.isnan(xy).any():  # unwritten chunk: a bug, never a wrong result
+        raise RuntimeError(f"qdrefine internal error: corner coordinates of triangles "
+                           f"{a}..{b - 1} are missing")
+    key, swap = _half_edges(t, job.n)
+    xy2 = np.roll(xy, -1, axis=1)
+    lo_xy = np.where(swap[..., None], xy2, xy).reshape(-1, 2)
+    hi_xy = np.where(swap[..., None], xy, xy2).reshape(-1, 2)
+    keys, first = np.unique(key.ravel(), return_index=True)
+    return pd.DataFrame({"key": keys, "j": np.full(len(keys), j, dtype=np.int64),
+                         "xlo": lo_xy[first, 0], "ylo": lo_xy[first, 1],
+                         "xhi": hi_xy[first, 0], "yhi": hi_xy[first, 1]})
+
+
+def _tagged_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
+    """The distinct tagged edges of edge chunk ``j - n_chunks`` (no coordinates)."""
+    import pandas as pd
+
+    j, (a, b) = item
+    e = _vertex_rows(job, "edges", "edge", a, b)
+    keys = np.unique(e.min(axis=1) * job.n + e.max(axis=1))
+    nan = np.full(len(keys), np.nan)
+    return pd.DataFrame({"key": keys, "j": np.full(len(keys), j, dtype=np.int64),
+                         "xlo": nan, "ylo": nan, "xhi": nan, "yhi": nan})
+
+
+def _edge_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list[tuple]:
+    """:func:`_edge_frame` as arrays, cut at the partitions' keys: piece ``p`` is
+    ``(keys, ends (u, 4))`` of partition ``p``, keys sorted."""
+    frame = _edge_frame((0, rows), job)
+    keys = frame["key"].to_numpy(np.int64)
+    ends = frame[["xlo", "ylo", "xhi", "yhi"]].to_numpy(np.float64)
+    at = np.searchsorted(keys, cuts)
+    return list(zip(np.split(keys, at), np.split(ends, at), strict=True))
+
+
+def _tagged_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list[tuple]:
+    """The tagged edges' sorted distinct keys, cut as in :func:`_edge_pieces` (no ends)."""
+    a, b = rows
+    e = _vertex_rows(job, "edges", "edge", a, b)
+    keys = np.unique(e.min(axis=1) * job.n + e.max(axis=1))
+    return [(k, None) for k in np.split(keys, np.searchsorted(keys, cuts))]
+
+
+def _number_pieces(pieces: list[tuple], job: _Job
+                   ) -> tuple[int, NDArray[np.float64], list[NDArray[np.int64]]]:
+    """Edge partition from the pieces of every triangle chunk, then every tagged edge
+    chunk: its number of distinct edges, their new points and, for every source, the
+    local ids of the keys it sent, in its order (-1: a tagged edge of no triangle)."""
+    tri = [pc for pc in pieces if pc[1] is not None]
+    keys = np.concatenate([k for k, _ in tri]) if tri else np.empty(0, dtype=np.int64)
+    ends = np.concatenate([e for _, e in tri]) if tri else np.empty((0, 4))
+    unique, first = np.unique(keys, return_index=True)
+    lids = []
+    for k, _ in pieces:
+        lid = np.searchsorted(unique, k)
+        found = lid < len(unique)
+        found[found] = unique[lid[found]] == k[found]
+        lids.append(np.where(found, lid, -1).astype(np.int64))
+    return len(unique), _new_points(ends[first], job.k), lids
+
+
+def _lids_for(result: tuple, j: int) -> NDArray[np.int64]:
+    return result[2][j]
+
+
+def _number_edges(part: pd.DataFrame, job: _Job, p: int
+                  ) -> tuple[int, NDArray[np.float64], pd.DataFrame]:
+    """Edge partition ``p`` (a range of keys, sorted): its number of distinct edges, their
+    new points ``(u_p k, 2)`` and the rows ``(j, key, p, local id)`` to send back (local id
+    -1: a tagged edge of no triangle)."""
+    import pandas as pd
+
+    key = part.index.to_numpy(dtype=np.int64)
+    j = part["j"].to_numpy(dtype=np.int64)
+    tri = j < job.n_chunks
+    keys, first = np.unique(key[tri], return_index=True)
+    lid = np.searchsorted(keys, key)
+    found = lid < len(keys)
+    found[found] = keys[lid[found]] == key[found]
+    lid = np.where(found, lid, -1)
+    ends = part[["xlo", "ylo", "xhi", "yhi"]].to_numpy(dtype=np.float64)[tri][first]
+    back = pd.DataFrame({"j": j, "key": key, "p": np.full(len(key), p, dtype=np.int64),
+                         "lid": lid.astype(np.int64)})
+    return len(keys), _new_points(ends, job.k), back
+
+
+def _count(result: tuple) -> int:
+    return int(result[0])
+
+
+def _new_points_of(result: tuple) -> NDArray[np.float64]:
+    return result[1]
+
+
+def _back_rows(result: tuple) -> pd.DataFrame:
+    return result[2]
+
+
+def _new_points(ends: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+    """The ``k`` new points of each edge ``(xlo, ylo, xhi, yhi)`` by the in-memory kernel:
+    ``(E * k, 2)``, each edge's points listed from its smaller vertex."""
+    u = len(ends)
+    local = np.ascontiguousarray(np.concatenate([ends[:, :2], ends[:, 2:]]))
+    edges = np.stack([np.arange(u), np.arange(u, 2 * u)], axis=1).astype(index_dtype(2 * u))
+    out = np.empty((2 * u + k * u, 2), dtype=np.float64)
+    with _one_numba_thread():
+        edge_points(local, edges, k, out)
+    return out[2 * u:]
+
+
+def _global_ids(part: pd.DataFrame | list, offsets: NDArray[np.int64],
+                keys: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The in-memory edge id of every key of ``keys`` (any shape), from the rows sent back
+    (a frame after a shuffle, or the partitions' local ids of this chunk's sorted distinct
+    keys, partition by partition)."""
+    if isinstance(part, list):
+        distinct, inverse = np.unique(keys, return_inverse=True)
+        lid = np.concatenate(part) if part else np.empty(0, dtype=np.int64)
+        if len(lid) != len(distinct):
+            raise RuntimeError("qdrefine internal error: edge ids did not come back")
+        p = np.repeat(np.arange(len(part)), [len(x) for x in part])
+        gid = np.where(lid < 0, -1, offsets[p] + lid)
+        return gid[inverse.reshape(keys.shape)]
+    sent = part["key"].to_numpy(dtype=np.int64)
+    gid = offsets[part["p"].to_numpy(dtype=np.int64)] + part["lid"].to_numpy(dtype=np.int64)
+    order = np.argsort(sent, kind="stable")
+    sent, gid = sent[order], gid[order]
+    pos = np.minimum(np.searchsorted(sent, keys), max(len(sent) - 1, 0))
+    if len(sent) == 0 or (sent[pos] != keys).any():
+        raise RuntimeError("qdrefine internal error: an edge id did not come back")
+    return np.where(part["lid"].to_numpy()[order][pos] < 0, -1, gid[pos])
+
+
+def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: int,
+                b: int) -> None:
+    """Children of triangles ``a .. b - 1`` (rows ``a T .. b T - 1``), their cell tags and,
+    with a next level, their corner coordinates."""
+    sch = get_scheme(job.scheme)
+    k, tc = job.k, job.children
+    t = _triangles(job, a, b)
+    xy = job.coords[a:b].reshape(-1, 2)
+    key, _ = _half_edges(t, job.n)
+    gid = _global_ids(part, offsets, key)
+    # renumber the chunk's vertices by rank: the kernel compares indices (a < b) only
+    vertices, first, local = np.unique(t, return_index=True, return_inverse=True)
+    local = local.reshape(-1, 3).astype(np.int32)
+    points = np.ascontiguousarray(xy[first])
+    _check_orientation(points, local, t, a, job.path)
+    u = len(vertices)
+    children = np.empty((len(t) * tc, 3), dtype=index_dtype(u + k * (job.n_out - job.n)))
+    with _one_numba_thread():
+        suspect = emit(points, local, gid, k, sch.forms, sch.lut, sch.tables, children)
+    if suspect.any():
+        _check_rounding(job, a, t, points, local, gid, children, suspect)
+    old = children < u
+    glob = np.where(old, vertices[np.where(old, children, 0)], job.n + (children - u))
+    job.out["triangles"][a * tc:b * tc] = glob.astype(job.out["triangles"].dtype)
+    if "cell_tags" in job.out:
+        job.out["cell_tags"][a * tc:b * tc] = np.repeat(job.src["cell_tags"][a:b], tc)
+    if job.next_coords is not None:
+        job.next_coords[a * tc:b * tc] = _child_coordinates(job, points, local, gid, children)
+
+
+def _child_coordinates(job: _Job, points: NDArray, local: NDArray, gid: NDArray,
+                       children: NDArray) -> NDArray[np.float64]:
+    """The children's corner coordinates ``(C T, 3, 2)``. The new points are computed here
+    again, from the same endpoints by the same kernel as in the edge partitions, so they are
+    the stored points bit for bit."""
+    k, u = job.k, len(points)
+    nxt = np.roll(local, -1, axis=1)
+    lo, hi = np.minimum(local, nxt).ravel(), np.maximum(local, nxt).ravel()
+    edge_ids, first = np.unique(gid.ravel(), return_index=True)
+    ends = np.concatenate([points[lo[first]], points[hi[first]]], axis=1)
+    new = _new_points(ends, k).reshape(-1, k, 2)
+    block = children.astype(np.int64)
+    old = block < u
+    rel = np.where(old, 0, block - u)
+    pos = np.minimum(np.searchsorted(edge_ids, rel // k), len(new) - 1)
+    return np.where(old[..., None], points[np.where(old, block, 0)], new[pos, rel % k])
+
+
+def _check_rounding(job: _Job, a: int, t: NDArray, points: NDArray, local: NDArray,
+                    gid: NDArray, children: NDArray, suspect: NDArray[np.bool_]) -> None:
+    """As :func:`qdrefine.refine.check_rounding` in memory: the children of the parents at
+    risk (``suspect``, from the kernel's certified bound) must be counter-clockwise with
+    their new points rounded to float64; ``ValueError`` naming the first parent otherwise."""
+    tc = job.children
+    rows = np.flatnonzero(np.repeat(suspect, tc))
+    xy = _child_coordinates(job, points, local, gid, children[rows]).reshape(-1, 2)
+    signs = orient_signs(np.ascontiguousarray(xy), np.arange(len(xy)).reshape(-1, 3))
+    bad = np.flatnonzero(signs <= 0)
+    if bad.size:
+        i = int(rows[bad[0]] // tc)
+        what = "zero area" if signs[bad[0]] == 0 else "clockwise orientation"
+        level = f" (at level {job.level})" if job.level > 1 else ""
+        raise ValueError(f"{job.path}: triangle {a + i} {tuple(t[i].tolist())}{level} is too "
+                         "thin for its distance from the origin: its new points rounded to "
+                         f"float64 give a child with {what}; translate the mesh nearer the "
+                         "origin or refine less")
+
+
+def _check_orientation(points: NDArray, local: NDArray, t: NDArray, a: int, path: str) -> None:
+    signs = orient_signs(points, local)
+    if (signs <= 0).any():
+        i = int(np.flatnonzero(signs <= 0)[0])
+        what = "has zero area" if signs[i] == 0 else "is clockwise"
+        raise ValueError(f"{path}: triangle {a + i} {tuple(t[i].tolist())} {what}; triangles "
+                         "must be counter-clockwise with positive area")
+
+
+def _split_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: int,
+                 b: int) -> None:
+    """Tagged edges ``a .. b - 1`` as ``k + 1`` pieces each (rows ``a (k+1) ..``)."""
+    k = job.k
+    tagged = job.src["edges"][a:b].astype(np.int64)
+    lo, hi = tagged.min(axis=1), tagged.max(axis=1)
+    gid = _global_ids(part, offsets, lo * job.n + hi)
+    if (gid < 0).any():
+        i = int(np.flatnonzero(gid < 0)[0])
+        raise ValueError(f"{job.path}: edge {a + i} ({lo[i]}, {hi[i]}) is not an edge of any "
+                         "triangle")
+    # split_tagged_edges looks each edge up in a sorted edge list: give it these edges
+    order = np.lexsort((hi, lo))
+    pieces, tags = split_tagged_edges(tagged, job.src["edge_tags"][a:b],
+                                      np.stack([lo, hi], axis=1)[order], job.n, k,
+                                      rank=gid[order])
+    job.out["edges"][a * (k + 1):b * (k + 1)] = pieces
+    job.out["edge_tags"][a * (k + 1):b * (k + 1)] = tags
+
+
+@contextlib.contextmanager
+def _one_numba_thread() -> Iterator[None]:
+    """Run the kernels on one thread: Dask's tasks are the parallelism (thread-local)."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
