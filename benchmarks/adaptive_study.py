@@ -12,12 +12,15 @@ Parts (each writes its results into one JSON file and figures under ``docs/img/`
   ``u = 0`` on the boundary, on the Gmsh plate with a hole, backward-facing step and graded
   square (the L-shape is the ``afem`` part): the smallest angle per cycle over the initial
   one, the median of the triangles added per marked one.
+* ``bounds``: the worst child/parent angle ratio of every transition pattern over the
+  mapping diagram, and the computed bound of :func:`qdrefine.adaptive.bounds.quality_bound`
+  on each Gmsh example mesh.
 * ``history``: what keeping the history in the mesh buys: the L-shape AFEM loop with the
   history dropped every cycle (``mesh.replace(transitions=None)``, the previous behaviour).
 
 Usage::
 
-    python benchmarks/adaptive_study.py [--cycles 12] [--parts afem,loops,history]
+    python benchmarks/adaptive_study.py [--cycles 12] [--parts afem,loops,history,bounds]
 """
 
 from __future__ import annotations
@@ -138,6 +141,19 @@ def part_history(cycles):
     return out
 
 
+def part_bounds(cycles):  # noqa: ARG001
+    """The worst child/parent ratio of every transition over the mapping diagram, and the
+    computed bound on each Gmsh mesh (qdrefine.adaptive.bounds)."""
+    from qdrefine.adaptive.bounds import pattern_ratios, quality_bound
+
+    out = {"patterns": pattern_ratios("7t-qd", n=200), "meshes": {}}
+    for name in examples.GMSH_MESHES:
+        b = quality_bound(examples.gmsh_mesh(name), levels=10)
+        out["meshes"][name] = {"initial": b.initial, "red": b.red, "transition": b.transition,
+                               "ratio": b.ratio, "classes": b.classes}
+    return out
+
+
 def plot_loops(loops, history, png):
     fig, ax = plt.subplots(figsize=(7, 4.5))
     styles = iter([("o", "-"), ("s", "--"), ("^", "-."), ("D", ":"), ("v", "-")])
@@ -165,7 +181,7 @@ def plot_loops(loops, history, png):
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cycles", type=int, default=12)
-    parser.add_argument("--parts", default="afem,loops,history")
+    parser.add_argument("--parts", default="afem,loops,history,bounds")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args(argv)
     parts = args.parts.split(",")

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from qdrefine import examples, refine, refine_with_parents
+from qdrefine.adaptive.bounds import quality_bound
 from qdrefine.adaptive.history import families_of
 from qdrefine.marking import mark_circle, mark_point, mark_random
 from qdrefine.quality import min_angles
@@ -44,17 +45,19 @@ def run(request):
 
 
 def test_minimum_angle_does_not_decay(run):
-    """At least 0.4 of the initial smallest angle at every cycle, and no downward trend:
-    with marks that stay in place the last four cycles are no lower than the first four;
-    with marks that move (a front, random marks) new regions of other shapes enter, so
-    they may be lower by a few percent, where compounding transitions lose most of the
-    angle (0.55 to 0.15 in 8 cycles before the history was kept)."""
+    """At least 0.4 of the initial smallest angle at every cycle, and never below the bound
+    computed from the mesh's shape classes (:func:`quality_bound`, which knows nothing of
+    the marks). With marks that stay in place, no downward trend at all: the last four
+    cycles are no lower than the first four. (Marks that move, a front or random marks,
+    reach new triangles whose refinements have their own shapes.)"""
     case, history = run
     a0 = min_angles(history[0][0]).min()
     ratio = np.array([min_angles(m).min() / a0 for m, _, _ in history[1:]])
+    bound = quality_bound(history[0][0], levels=8).ratio
     assert (ratio >= 0.4).all(), (case, ratio.round(3))
-    slack = 1.0 if case.endswith("corner") else 0.95
-    assert ratio[-4:].min() >= slack * ratio[:4].min() - 1e-12, (case, ratio.round(3))
+    assert (ratio >= bound - 1e-9).all(), (case, bound, ratio.round(3))
+    if case.endswith("corner"):
+        assert ratio[-4:].min() >= ratio[:4].min() - 1e-12, (case, ratio.round(3))
 
 
 def test_every_cycle_is_a_valid_conforming_mesh_with_its_data(run):
@@ -80,14 +83,19 @@ def test_every_cycle_is_a_valid_conforming_mesh_with_its_data(run):
                                    atol=1e-13)
         # the history in the mesh is consistent (families tile their parents)
         families_of(mesh, 2)
-        # every marked triangle is gone
-        rows = {frozenset(r) for r in mesh.triangles.tolist()}
-        assert not any(frozenset(r) in rows for r in before.triangles[marked].tolist())
+        # every marked triangle is gone (compared by coordinates: the centroids of
+        # coarsened transitions are removed, so point numbers move)
+        def corners(m, rows):
+            return {frozenset(map(tuple, p)) for p in m.points[rows].tolist()}
+        assert not corners(mesh, mesh.triangles) & corners(before, before.triangles[marked])
 
 
 def test_refinement_stays_near_the_marks(run):
     """Triangles that change lie within a bounded layer around the marked ones: at most
-    ``LAYER`` vertex rings (closure, transitions, coarsened families) away."""
+    ``LAYER`` vertex rings away (longest-edge paths, transitions, upgrades, coarsened
+    families). The layer is measured, not proven: up to 7 rings in these runs (random
+    marks), 2-3 around a corner; a longest-edge path is bounded only by how often edge
+    lengths can grow along it."""
     _, history = run
     for before, (mesh, parents, marked) in zip(history, history[1:], strict=False):
         before = before[0]
@@ -95,7 +103,8 @@ def test_refinement_stays_near_the_marks(run):
         same = np.zeros(before.n_triangles, dtype=bool)
         one = np.flatnonzero(count == 1)
         child = np.searchsorted(parents, one)  # parents are sorted
-        same[one] = (mesh.triangles[child] == before.triangles[one]).all(axis=1)
+        same[one] = (mesh.points[mesh.triangles[child]]
+                     == before.points[before.triangles[one]]).all(axis=(1, 2))
         near = marked.copy()
         for _ in range(LAYER):
             ring = np.zeros(before.n_points, dtype=bool)
@@ -104,7 +113,7 @@ def test_refinement_stays_near_the_marks(run):
         assert not (~same & ~near).any()
 
 
-LAYER = 6
+LAYER = 8
 
 
 def test_spread_is_bounded():

@@ -45,9 +45,9 @@ METHODS = ("7t-qd", "7t-le", "4t-le", "scikit-fem")
 def _skfem():
     try:
         import skfem
-    except ImportError:  # pragma: no cover - exercised without the extra
-        raise ImportError("the AFEM example needs scikit-fem: pip install 'qdrefine[fem]'"
-                          ) from None
+    except ModuleNotFoundError:  # pragma: no cover - exercised without the extra
+        raise ModuleNotFoundError("the AFEM example needs scikit-fem: pip install "
+                                  "'qdrefine[fem]'", name="skfem") from None
     return skfem
 
 

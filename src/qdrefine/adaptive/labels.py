@@ -6,6 +6,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
+from ..jit import threads_for
 from ..kernels import CHUNK, canonical
 from ..predicates import SCRATCH
 
@@ -37,7 +38,8 @@ def canonical_labels(points: NDArray[np.float64], triangles: NDArray[np.integer]
     of :mod:`qdrefine.schemes`), the same labelling uniform refinement uses."""
     out = np.empty((triangles.shape[0], 3), dtype=np.int8)
     if triangles.shape[0]:
-        _labels(points, triangles, out)
+        with threads_for(triangles.shape[0]):
+            _labels(points, triangles, out)
     return out
 
 

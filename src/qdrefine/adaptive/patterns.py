@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
+from ..jit import threads_for
 from ..stencil import CENTROID, FIXED_7T, FOUR, SEVEN, Stencil, with_centroid
 from .edgekeys import oriented
 from .labels import MN, NO, OM
@@ -240,8 +241,9 @@ def choose(coords: NDArray[np.float64], k: int, code: int
     choice = np.empty(g, dtype=np.int64)
     score = np.empty(g)
     if g:
-        _choose(np.ascontiguousarray(coords, dtype=np.float64), tris.astype(np.int64), cand,
-                choice, score)
+        with threads_for(g * tris.shape[0] // 16):
+            _choose(np.ascontiguousarray(coords, dtype=np.float64), tris.astype(np.int64),
+                    cand, choice, score)
     return choice, score
 
 

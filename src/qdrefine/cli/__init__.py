@@ -25,7 +25,7 @@ COMMANDS: tuple[str, ...] = (
 
 #: Top-level packages of optional extras, and the extra that installs each.
 OPTIONAL = {"dask": "dask", "distributed": "dask", "zarr": "dask", "fsspec": "dask",
-            "scipy": "paper", "sympy": "paper"}
+            "scipy": "paper", "sympy": "paper", "skfem": "fem"}
 
 
 def _parser() -> argparse.ArgumentParser:
