@@ -222,14 +222,17 @@ def _run(found: _Found, out: Checked, points, triangles, cell_tags, edges, edge_
     if geometry:
         oriented, flat = _orientation(found, p, t, flip)
     topo = _Topology(t, n, sort_edges(t, n))
-    used = _used(t, n)
+    used = None
     if not found.stop:
+        used = _used(t, n)
         out.summary = _summary(t, used, topo)
     manifold = _overused(found, topo)
     if oriented:
         oriented = _folded(found, topo) and manifold
     if geometry:
-        _duplicates(found, p, used)
+        # validation: duplicates among boundary vertices; one at an inner vertex is always
+        # an overlap too, which the sweep finds
+        _duplicates(found, p, np.unique(topo.bedges) if used is None else np.flatnonzero(used))
         if flat:
             _boundary(found, p, topo, oriented)
         else:
@@ -237,7 +240,7 @@ def _run(found: _Found, out: Checked, points, triangles, cell_tags, edges, edge_
     out.cell_tags = _cell_tags(found, cell_tags, len(t))
     out.edges, out.edge_tags = _tagged_edges(found, edges, edge_tags, topo, n, t.dtype)
     if warnings:
-        _unused(found, used)
+        _unused(found, _used(t, n) if used is None else used)
         if oriented:
             _pinched(found, topo.bedges)
         if geometry:
@@ -401,10 +404,9 @@ def bucket_scan(t, local, starts, first, shift, mult):
     (``local``, ``starts``, ``first``, ``shift`` and the multiplicities ``mult``)."""
     ne = first[first.shape[0] - 1]
     n_boundary = 0
-    for k in range(t.shape[0]):
-        for i in range(3):
-            b = min(t[k, i], t[k, (i + 1) % 3]) >> shift
-            if mult[starts[b] + local[k, i]] == 1:
+    for b in range(first.shape[0] - 1):
+        for u in range(first[b + 1] - first[b]):
+            if mult[starts[b] + u] == 1:
                 n_boundary += 1
     bedges = np.empty((n_boundary, 2), dtype=np.int64)
     btris = np.empty(n_boundary, dtype=np.int64)
@@ -503,8 +505,8 @@ def _folded(found: _Found, topo: _Topology) -> bool:
     return False
 
 
-def _duplicates(found: _Found, p: NDArray, used: NDArray) -> None:
-    count, pairs = duplicate_pairs(p, np.flatnonzero(used), _CAP)
+def _duplicates(found: _Found, p: NDArray, ids: NDArray) -> None:
+    count, pairs = duplicate_pairs(p, ids, _CAP)
     if count:
         a, b = (int(v) for v in pairs[np.lexsort(pairs[:, ::-1].T)[0]])
         xy = tuple(p[a].tolist())

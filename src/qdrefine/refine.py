@@ -106,14 +106,17 @@ def as_count(value: object, name: str) -> int:
 
 
 def refine_arrays(points: NDArray[np.float64], triangles: NDArray[np.integer], sch: Scheme,
-                  strict: bool = True) -> tuple[NDArray[np.float64], NDArray, EdgeBuckets]:
+                  strict: bool = True, buckets: EdgeBuckets | None = None
+                  ) -> tuple[NDArray[np.float64], NDArray, EdgeBuckets]:
     """One uniform level on plain arrays (counter-clockwise ``triangles (M, 3)`` with indices
     into ``points (N, 2)``): ``new_points (N + k E, 2)``, ``children (M T, 3)`` (``int32``
     while the points fit) and the sorted edges; see :func:`refine` for the numbering and
-    ``strict``."""
+    ``strict``. ``buckets``: :func:`~qdrefine.numbering.sort_edges` of ``triangles`` if
+    already known (validation builds them)."""
     k = sch.stencil.per_edge
     n = points.shape[0]
-    buckets = sort_edges(triangles, n)
+    if buckets is None:
+        buckets = sort_edges(triangles, n)
     n_new = n + k * buckets.n_edges
     new_points = np.empty((n_new, 2), dtype=np.float64)
     bucket_points(points, buckets, k, new_points)
@@ -128,7 +131,8 @@ def refine_arrays(points: NDArray[np.float64], triangles: NDArray[np.integer], s
 def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
     k = sch.stencil.per_edge
     n = mesh.n_points
-    points, triangles, buckets = refine_arrays(mesh.points, mesh.triangles, sch, strict)
+    points, triangles, buckets = refine_arrays(mesh.points, mesh.triangles, sch, strict,
+                                               mesh._take_buckets())
     cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
     new_edges, edge_tags = None, None
     if mesh.edges is not None:
