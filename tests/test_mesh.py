@@ -195,7 +195,7 @@ def test_sweep_finds_a_crossing_when_there_is_one(n, seed):
     edges = [(a, b) for a, b in rng.integers(0, len(points), size=(n, 2)).tolist() if a != b]
     if not edges:
         return
-    _, _, crossing, _, _, _ = sweep(points, np.array(edges), False, False)
+    crossing = sweep(points, np.array(edges), False, False)[2]
     crossing_pairs = any(
         _meets(q, *edges[i], *edges[j]) and not (
             orient(q[edges[i][0]], q[edges[i][1]], q[edges[j][0]]) == 0

@@ -64,6 +64,9 @@ KINDS: dict[str, tuple[str, str]] = {
     "edge-tags": ("error", "tagged edges are not (K, 2) vertex indices with one integer tag "
                            "each"),
     "edge-not-in-mesh": ("error", "a tagged edge is not an edge of any triangle"),
+    "near-hanging-node": ("warning", "a boundary vertex off another triangle's boundary edge "
+                                     "by less than 1e-12 times its length, outside it (a "
+                                     "crack; inside it would be an overlap)"),
     "unused-points": ("warning", "points used by no triangle (kept, carried through "
                                  "refinement)"),
     "pinched-vertex": ("warning", "a vertex where separate fans of triangles touch"),
@@ -578,7 +581,8 @@ def _boundary(found: _Found, p: NDArray, topo: _Topology, covers: bool) -> None:
     """Hanging nodes, crossing boundary edges and doubly covered area: one plane sweep
     (:mod:`qdrefine.sweep`)."""
     bedges, btris = topo.bedges, topo.btris
-    n_hang, hits, crossing, n_cov, first_cov, _ = sweep(p, bedges, covers, found.stop, _CAP)
+    n_hang, hits, crossing, n_cov, first_cov, n_near, near, _ = sweep(
+        p, bedges, covers, found.stop, _CAP)
     ids = found.ids
     if n_hang:
         v, row = (int(x) for x in hits[0])
@@ -600,6 +604,13 @@ def _boundary(found: _Found, p: NDArray, topo: _Topology, covers: bool) -> None:
         found.add("overlap", f"triangle {tri} {tuple(ids(topo.t[btris[r]]))} overlaps another "
                   f"part of the mesh (the area along its edge {tuple(ids(bedges[r]))} is "
                   "covered twice)", n_cov, triangle=tri, edge=ids(bedges[r]))
+    if n_near and not found.stop and not crossing[0] and not n_cov:
+        v, r, d = int(near[0]), int(near[1]), float(near[2])
+        tri = int(btris[r]) + found.base
+        found.add("near-hanging-node", f"vertex {v + found.base} is off edge "
+                  f"{tuple(ids(bedges[r]))} of triangle {tri} by only {d:.2g} times its length "
+                  "(outside it: a crack; refinement decides it exactly)", n_near,
+                  vertex=v + found.base, edge=ids(bedges[r]), triangle=tri, distance=d)
 
 
 def hanging_nodes(points: NDArray, bedges: NDArray) -> tuple[int, NDArray[np.int64]]:
@@ -611,7 +622,7 @@ def hanging_nodes(points: NDArray, bedges: NDArray) -> tuple[int, NDArray[np.int
     :mod:`qdrefine.sweep` (``O(B log B)``). Where two edges cross, the sweep stops there:
     the count covers the vertices before that crossing.
     """
-    n_hang, hits, _, _, _, _ = sweep(points, bedges, False, False, _CAP)
+    n_hang, hits = sweep(points, bedges, False, False, _CAP)[:2]
     return int(n_hang), hits
 
 

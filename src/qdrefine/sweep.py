@@ -40,10 +40,13 @@ from numpy.typing import NDArray
 
 from .predicates import SCRATCH, orient_sign
 
-__all__ = ["CROSSING", "SAME_SIDE", "sweep"]
+__all__ = ["CROSSING", "NEAR", "SAME_SIDE", "sweep"]
 
 CROSSING = 1  #: two boundary edges cross at a point inside both
 SAME_SIDE = 2  #: two boundary edges overlap along a segment with their triangles on one side
+#: A vertex off a boundary edge by less than this times the edge's length, outside it, is
+#: reported as *near* the edge (a crack too thin to see; the mesh is valid).
+NEAR = 1e-12
 
 
 def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool,
@@ -74,13 +77,19 @@ def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool
         Edges with a cover other than 0 or 1 directly above them (``covers`` only).
     first_covered : int
         Row of the first such edge, ``-1`` when none.
+    n_near : int
+        Vertices off the edge just above or below them by less than :data:`NEAR` times its
+        length (not on it).
+    nearest : (3,) float64
+        ``(vertex, row, relative distance)`` of the nearest of them.
     work : int
         Orientation tests made (for tests of the cost bound).
     """
     e = np.ascontiguousarray(bedges, dtype=np.int64).reshape(-1, 2)
     p = np.ascontiguousarray(points, dtype=np.float64)
     if len(e) == 0:
-        return 0, np.empty((0, 2), np.int64), np.array([0, -1, -1]), 0, -1, 0
+        return (0, np.empty((0, 2), np.int64), np.array([0, -1, -1]), 0, -1, 0, np.zeros(3),
+                0)
     verts = np.unique(e)
     x, y = p[verts, 0], p[verts, 1]
     order = np.lexsort((y, x))
@@ -177,6 +186,15 @@ def _crosses(p, lo, hi, a, b, buf):
 
 
 @njit(cache=True)
+def _gap(p, a, b, vx, vy):
+    """Distance of ``(vx, vy)`` from the line of edge ``ab`` over the edge's length
+    (float64; only compared with :data:`NEAR`)."""
+    dx, dy = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1]
+    cross = dx * (vy - p[a, 1]) - dy * (vx - p[a, 0])
+    return abs(cross) / (dx * dx + dy * dy)
+
+
+@njit(cache=True)
 def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, stop_first,
            cap):
     b = lo.shape[0]
@@ -189,6 +207,8 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
     crossing = np.array([0, -1, -1], dtype=np.int64)
     buf = np.empty(SCRATCH)
     root = -1
+    n_near = 0
+    near = np.zeros(3)
     n_hang = 0
     n_cov = 0
     first_cov = -1
@@ -219,11 +239,14 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                 work += 4
                 if _crosses(p, lo, hi, below, above, buf):
                     crossing[0], crossing[1], crossing[2] = 1, below, above
-                    return n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov, work
+                    return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
+                            n_near, near, work)
         # 2. the vertex against the edges that pass it
         v = rep[k]
         vx, vy = p[v, 0], p[v, 1]
         y = root
+        under = over = -1
+        on_edge = False
         while y >= 0:
             work += 1
             o = orient_sign(p[lo[y], 0], p[lo[y], 1], p[hi[y], 0], p[hi[y], 1], vx, vy, buf)
@@ -232,9 +255,24 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                     hits[n_hang, 0], hits[n_hang, 1] = v, y
                 n_hang += 1
                 if stop_first:
-                    return n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov, work
+                    return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
+                            n_near, near, work)
+                on_edge = True
                 break
-            y = rc[y] if o > 0 else lc[y]
+            if o > 0:
+                under = y
+                y = rc[y]
+            else:
+                over = y
+                y = lc[y]
+        if not on_edge:  # v between the edges ``under`` and ``over``: almost on one of them?
+            for y in (under, over):
+                if y >= 0:
+                    d = _gap(p, lo[y], hi[y], vx, vy)
+                    if d < NEAR:
+                        if n_near == 0 or d < near[2]:
+                            near[0], near[1], near[2] = v, y, d
+                        n_near += 1
         # 3. edges starting here
         for j in range(start_at[k], start_at[k + 1]):
             s = by_start[j]
@@ -254,7 +292,7 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                         if delta[s] == delta[y]:
                             crossing[0], crossing[1], crossing[2] = 2, y, s
                             return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov,
-                                    first_cov, work)
+                                    first_cov, n_near, near, work)
                         o = delta[s]
                 q = y
                 side = o
@@ -275,7 +313,7 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                     if _crosses(p, lo, hi, nb, s, buf):
                         crossing[0], crossing[1], crossing[2] = 1, nb, s
                         return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
-                                work)
+                                n_near, near, work)
         if not covers:
             continue
         # covers of the new edges, each run of them from the edge below it upwards
@@ -295,6 +333,6 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                     n_cov += 1
                     if stop_first:
                         return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
-                                work)
+                                n_near, near, work)
                 x = _neighbour(x, lc, rc, par, True)
-    return n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov, work
+    return n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov, n_near, near, work
