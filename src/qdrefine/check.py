@@ -28,6 +28,7 @@ from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
 from .jit import threads_for
+from .memory import check_needed, validation_needed
 from .numbering import EdgeBuckets, sort_edges
 from .predicates import COORDINATE_RANGE, orient_signs
 from .sweep import CROSSING, sweep
@@ -221,6 +222,7 @@ def _run(found: _Found, out: Checked, points, triangles, cell_tags, edges, edge_
     if not geometry:
         found.skip("orientation, duplicate points, overlaps, hanging nodes and angles",
                    "no valid flat coordinates")
+    check_needed(validation_needed(n, len(t), 0), f"validating {len(t)} triangles")
     oriented = flat = False
     if geometry:
         oriented, flat = _orientation(found, p, t, flip)
@@ -581,6 +583,8 @@ def _boundary(found: _Found, p: NDArray, topo: _Topology, covers: bool) -> None:
     """Hanging nodes, crossing boundary edges and doubly covered area: one plane sweep
     (:mod:`qdrefine.sweep`)."""
     bedges, btris = topo.bedges, topo.btris
+    check_needed(validation_needed(len(p), len(topo.t), len(bedges)),
+                 f"validating {len(topo.t)} triangles ({len(bedges)} boundary edges)")
     n_hang, hits, crossing, n_cov, first_cov, n_near, near, _ = sweep(
         p, bedges, covers, found.stop, _CAP)
     ids = found.ids
