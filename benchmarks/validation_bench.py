@@ -1,0 +1,153 @@
+"""Validation benchmark (not part of the test suite): what building a ``Mesh`` from arrays
+costs next to refining it, against scikit-fem, and on hostile input.
+
+Reports, as a table and as JSON (``--json FILE``):
+
+* on the 2 M-triangle benchmark mesh of ``refine_bench.py`` (structured grid, and shuffled):
+  ``Mesh(p, t)``, one 7T-QD level of an already built mesh (``refine(mesh)``, which numbers
+  its edges itself) and ``refine(Mesh(p, t))`` (which reuses the validation's sorted
+  edges), best of ``--repeat``, all threads and one thread; the ratio of the last to the
+  second is issue 16's "at most 1.3x";
+* in the same run, a fresh ``skfem.MeshTri(p, t).refined()`` and the ratio of output
+  triangles per second, ``refine(Mesh(p, t))`` over scikit-fem's (issue 16: "at least 40x");
+* adversarial soups of ``--soup`` triangles (issue 17: "under 5 s"): ``stacked``, separate
+  long slivers whose bounding boxes all overlap (valid: the sweep runs to the end);
+  ``slivers`` and ``scattered``, random separate triangles that overlap (refused at the
+  first crossing); ``grid``, separate small triangles one per cell (valid): the time of
+  ``Mesh(p, t)`` (or of its refusal) and of ``check.find`` (every problem), and the number of
+  orientation tests of the sweep over ``B log2 B`` at a tenth and at the full size;
+* the load average before and after (the development machine is shared: times are noisy).
+
+Run: ``python benchmarks/validation_bench.py [--repeat 5] [--soup 300000] [--json out.json]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numba
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from refine_bench import grid  # noqa: E402
+
+from qdrefine import Mesh, check, refine  # noqa: E402
+from qdrefine.predicates import orient_signs  # noqa: E402
+from qdrefine.sweep import sweep  # noqa: E402
+
+
+def best(f, repeat: int) -> float:
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        f()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def construction(mesh: Mesh, repeat: int) -> dict:
+    p, t = np.array(mesh.points), np.array(mesh.triangles)
+    out = {}
+    for threads in (numba.config.NUMBA_NUM_THREADS, 1):
+        numba.set_num_threads(threads)
+        refine(Mesh(p, t))  # warm (compiled, caches)
+        level = best(lambda: refine(mesh), repeat)
+        build = best(lambda: Mesh(p, t), repeat)
+        both = best(lambda: refine(Mesh(p, t)), repeat)
+        out[f"{threads}_threads"] = {"refine_s": level, "mesh_s": build,
+                                     "mesh_and_refine_s": both, "ratio": both / level,
+                                     "out_tri_per_s": 7 * mesh.n_triangles / both}
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return out
+
+
+def scikit_fem(mesh: Mesh, ours: float, repeat: int) -> dict:
+    try:
+        import skfem
+    except ImportError:
+        return {"scikit-fem": "not installed"}
+    p, t = np.array(mesh.points), np.array(mesh.triangles)
+    pt, tt = p.T.copy(), t.T.astype(np.int64).copy()
+    s = best(lambda: skfem.MeshTri(pt, tt).refined(), max(1, repeat // 2))
+    theirs = 4 * mesh.n_triangles / s
+    return {"skfem_fresh_refined_s": s, "skfem_out_tri_per_s": theirs,
+            "qdrefine_out_tri_per_s": ours, "ratio": ours / theirs}
+
+
+def soup(kind: str, m: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """``m`` separate triangles (3 points each), counter-clockwise."""
+    rng = np.random.default_rng(seed)
+    if kind == "stacked":  # long parallel slivers: every bounding box overlaps every other
+        y = np.arange(m) * 1e-5
+        tri = np.stack([np.stack([np.zeros(m), y], 1), np.stack([np.ones(m), y + 1], 1),
+                        np.stack([np.full(m, 0.5), y + 0.5 + 1e-6], 1)], 1)
+    elif kind == "slivers":  # random long slivers across the unit square
+        a, b = rng.random((m, 2)), rng.random((m, 2))
+        tri = np.stack([a, b, (a + b) / 2 + rng.normal(size=(m, 2)) * 1e-7], 1)
+    elif kind == "scattered":  # small random triangles, overlapping here and there
+        tri = rng.random((m, 1, 2)) + rng.random((m, 3, 2)) * 1e-3
+    else:  # "grid": one small triangle per cell of a grid, none touching
+        k = int(np.ceil(np.sqrt(m)))
+        cell = np.stack(np.divmod(np.arange(m), k), 1).astype(float)
+        tri = cell[:, None, :] + 0.1 + rng.random((m, 3, 2)) * 0.8
+    p = tri.reshape(-1, 2)
+    t = np.arange(3 * m).reshape(m, 3)
+    s = orient_signs(p, t)
+    t[s < 0] = t[s < 0][:, ::-1]
+    return p, t[s != 0]
+
+
+def soups(m: int) -> dict:
+    out = {}
+    for kind in ("stacked", "slivers", "scattered", "grid"):
+        row: dict = {}
+        for size in (m // 10, m):
+            p, t = soup(kind, size)
+            t0 = time.perf_counter()
+            try:
+                Mesh(p, t)
+                verdict = "valid"
+            except ValueError as exc:
+                verdict = str(exc)[:100]
+            build = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            found = check.find(p, t)
+            full = time.perf_counter() - t0
+            bedges = t[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+            work = sweep(p, bedges, True, False)[-1]
+            b = len(bedges)
+            row[str(len(t))] = {"mesh_s": build, "check_find_s": full, "mesh": verdict,
+                                "kinds": sorted({x.kind for x in found.problems}),
+                                "sweep_tests_per_B_log2_B": work / (b * np.log2(b))}
+        out[kind] = row
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--size", type=float, default=2.0, help="million triangles (default 2)")
+    ap.add_argument("--soup", type=int, default=300_000)
+    ap.add_argument("--json", help="write the results here")
+    args = ap.parse_args()
+    res: dict = {"load_before": os.getloadavg(), "threads": numba.config.NUMBA_NUM_THREADS}
+    for shuffled in (False, True):
+        mesh = grid(args.size, shuffled)
+        name = f"{'shuffled' if shuffled else 'grid'}_{mesh.n_triangles}"
+        res[name] = construction(mesh, args.repeat)
+        ours = res[name][f"{numba.config.NUMBA_NUM_THREADS}_threads"]["out_tri_per_s"]
+        res[name]["scikit-fem"] = scikit_fem(mesh, ours, args.repeat)
+    res["soups"] = soups(args.soup)
+    res["load_after"] = os.getloadavg()
+    print(json.dumps(res, indent=1))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(res, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
