@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from .predicates import SCRATCH, orient_sign
+from .predicates import FILTER, SCRATCH, orient_sign
 
 __all__ = ["CROSSING", "NEAR", "SAME_SIDE", "sweep"]
 
@@ -117,6 +117,21 @@ def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool
 
 
 @njit(inline="always", cache=True)
+def _orient(p, a, b, cx, cy, buf):
+    """:func:`qdrefine.predicates.orient_sign` of points ``a``, ``b`` of ``p`` and
+    ``(cx, cy)``, its float filter inline (the call only when the filter cannot decide)."""
+    ax, ay, bx, by = p[a, 0], p[a, 1], p[b, 0], p[b, 1]
+    u = (bx - ax) * (cy - ay)
+    w = (by - ay) * (cx - ax)
+    bound = FILTER * (abs(u) + abs(w))
+    if u - w > bound:
+        return 1
+    if u - w < -bound:
+        return -1
+    return orient_sign(ax, ay, bx, by, cx, cy, buf)
+
+
+@njit(inline="always", cache=True)
 def _priority(i):
     """A fixed pseudo-random priority (splitmix64 of the index)."""
     z = np.uint64(i) + np.uint64(0x9E3779B97F4A7C15)
@@ -172,17 +187,33 @@ def _neighbour(x, lc, rc, par, after):
 def _crosses(p, lo, hi, a, b, buf):
     """True when edges ``a`` and ``b`` cross at a point inside both (two orientation pairs
     of strictly opposite signs)."""
-    o1 = orient_sign(p[lo[a], 0], p[lo[a], 1], p[hi[a], 0], p[hi[a], 1], p[lo[b], 0],
-                     p[lo[b], 1], buf)
-    o2 = orient_sign(p[lo[a], 0], p[lo[a], 1], p[hi[a], 0], p[hi[a], 1], p[hi[b], 0],
-                     p[hi[b], 1], buf)
+    o1 = _orient(p, lo[a], hi[a], p[lo[b], 0], p[lo[b], 1], buf)
+    o2 = _orient(p, lo[a], hi[a], p[hi[b], 0], p[hi[b], 1], buf)
     if o1 * o2 >= 0:
         return False
-    o3 = orient_sign(p[lo[b], 0], p[lo[b], 1], p[hi[b], 0], p[hi[b], 1], p[lo[a], 0],
-                     p[lo[a], 1], buf)
-    o4 = orient_sign(p[lo[b], 0], p[lo[b], 1], p[hi[b], 0], p[hi[b], 1], p[hi[a], 0],
-                     p[hi[a], 1], buf)
+    o3 = _orient(p, lo[b], hi[b], p[lo[a], 0], p[lo[a], 1], buf)
+    o4 = _orient(p, lo[b], hi[b], p[hi[a], 0], p[hi[a], 1], buf)
     return o3 * o4 < 0
+
+
+@njit(cache=True)
+def _found(v, y, on_edge, under, over, p, lo, hi, vx, vy, hits, near, cap, n_hang):
+    """Record what the search of vertex ``v`` found: inside edge ``y`` (a hanging node), or
+    between ``under`` and ``over``, maybe almost on one of them (``near`` keeps the
+    nearest). Returns the numbers of hanging and near vertices found (0 or 1 each)."""
+    if on_edge:
+        if n_hang < cap:
+            hits[n_hang, 0], hits[n_hang, 1] = v, y
+        return 1, 0
+    close = 0
+    for e in (under, over):
+        if e >= 0:
+            d = _gap(p, lo[e], hi[e], vx, vy)
+            if d < NEAR:
+                if near[0] < 0 or d < near[2]:
+                    near[0], near[1], near[2] = v, e, d
+                close = 1
+    return 0, close
 
 
 @njit(cache=True)
@@ -208,8 +239,9 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
     buf = np.empty(SCRATCH)
     root = -1
     n_near = 0
-    near = np.zeros(3)
+    near = np.full(3, -1.0)
     n_hang = 0
+    hit = -1
     n_cov = 0
     first_cov = -1
     work = 0
@@ -241,62 +273,67 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                     crossing[0], crossing[1], crossing[2] = 1, below, above
                     return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
                             n_near, near, work)
-        # 2. the vertex against the edges that pass it
+        # 2. the vertex against the edges that pass it: its search in the tree is the
+        # descent of the first edge inserted in 3. (a search of its own without one)
         v = rep[k]
         vx, vy = p[v, 0], p[v, 1]
-        y = root
         under = over = -1
         on_edge = False
-        while y >= 0:
-            work += 1
-            o = orient_sign(p[lo[y], 0], p[lo[y], 1], p[hi[y], 0], p[hi[y], 1], vx, vy, buf)
-            if o == 0:
-                if n_hang < cap:
-                    hits[n_hang, 0], hits[n_hang, 1] = v, y
-                n_hang += 1
-                if stop_first:
-                    return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
-                            n_near, near, work)
-                on_edge = True
-                break
-            if o > 0:
-                under = y
-                y = rc[y]
-            else:
-                over = y
-                y = lc[y]
-        if not on_edge:  # v between the edges ``under`` and ``over``: almost on one of them?
-            for y in (under, over):
-                if y >= 0:
-                    d = _gap(p, lo[y], hi[y], vx, vy)
-                    if d < NEAR:
-                        if n_near == 0 or d < near[2]:
-                            near[0], near[1], near[2] = v, y, d
-                        n_near += 1
+        if start_at[k] == start_at[k + 1]:
+            y = root
+            while y >= 0:
+                work += 1
+                o = _orient(p, lo[y], hi[y], vx, vy, buf)
+                if o == 0:
+                    on_edge = True
+                    break
+                if o > 0:
+                    under = y
+                    y = rc[y]
+                else:
+                    over = y
+                    y = lc[y]
         # 3. edges starting here
         for j in range(start_at[k], start_at[k + 1]):
             s = by_start[j]
+            search = j == start_at[k]
             stamp[s] = k
             q = -1
             y = root
             side = 0
             while y >= 0:
                 work += 1
-                o = orient_sign(p[lo[y], 0], p[lo[y], 1], p[hi[y], 0], p[hi[y], 1], vx, vy,
-                                buf)
+                o = _orient(p, lo[y], hi[y], vx, vy, buf)
                 if o == 0:
+                    if search:  # v inside edge y (no edge of this vertex is in yet)
+                        on_edge = True
+                        hit = y
                     work += 1
-                    o = orient_sign(p[lo[y], 0], p[lo[y], 1], p[hi[y], 0], p[hi[y], 1],
-                                    p[hi[s], 0], p[hi[s], 1], buf)
+                    o = _orient(p, lo[y], hi[y], p[hi[s], 0], p[hi[s], 1], buf)
                     if o == 0:
                         if delta[s] == delta[y]:
                             crossing[0], crossing[1], crossing[2] = 2, y, s
                             return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov,
                                     first_cov, n_near, near, work)
                         o = delta[s]
+                elif search:
+                    if o > 0:
+                        under = y
+                    else:
+                        over = y
                 q = y
                 side = o
                 y = rc[y] if o > 0 else lc[y]
+            if search and on_edge:
+                y = hit
+            if search:
+                found = _found(v, y, on_edge, under, over, p, lo, hi, vx, vy, hits, near,
+                               cap, n_hang)
+                n_hang += found[0]
+                n_near += found[1]
+                if on_edge and stop_first:
+                    return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
+                            n_near, near, work)
             par[s] = q
             if q < 0:
                 root = s
@@ -314,6 +351,14 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                         crossing[0], crossing[1], crossing[2] = 1, nb, s
                         return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
                                 n_near, near, work)
+        if start_at[k] == start_at[k + 1]:
+            found = _found(v, y, on_edge, under, over, p, lo, hi, vx, vy, hits, near, cap,
+                           n_hang)
+            n_hang += found[0]
+            n_near += found[1]
+            if on_edge and stop_first:
+                return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov, n_near,
+                        near, work)
         if not covers:
             continue
         # covers of the new edges, each run of them from the edge below it upwards
