@@ -585,15 +585,12 @@ def _boundary(found: _Found, p: NDArray, topo: _Topology, covers: bool) -> None:
     bedges, btris = topo.bedges, topo.btris
     check_needed(validation_needed(len(p), len(topo.t), len(bedges)),
                  f"validating {len(topo.t)} triangles ({len(bedges)} boundary edges)")
-    n_hang, hits, crossing, n_cov, first_cov, n_near, near, _ = sweep(
+    n_hang, hits, crossing, n_cov, first_cov, n_near, near, firsts, _ = sweep(
         p, bedges, covers, found.stop, _CAP)
     ids = found.ids
-    if n_hang:
-        v, row = (int(x) for x in hits[0])
-        edge, tri = ids(bedges[row]), int(btris[row]) + found.base
-        found.add("hanging-node", f"vertex {v + found.base} lies inside edge {tuple(edge)} of "
-                  f"triangle {tri} (a hanging node: the mesh is not conforming there)",
-                  n_hang, vertex=v + found.base, edge=edge, triangle=tri)
+    hanging_first = n_hang and not (n_cov and firsts[1] < firsts[0])
+    if hanging_first:  # the sweep's order: validation stops at the first of the two
+        _hanging(found, hits, n_hang, bedges, btris)
     if crossing[0]:
         r, s = int(crossing[1]), int(crossing[2])
         ta, tb = int(btris[r]) + found.base, int(btris[s]) + found.base
@@ -608,6 +605,8 @@ def _boundary(found: _Found, p: NDArray, topo: _Topology, covers: bool) -> None:
         found.add("overlap", f"triangle {tri} {tuple(ids(topo.t[btris[r]]))} overlaps another "
                   f"part of the mesh (the area along its edge {tuple(ids(bedges[r]))} is "
                   "covered twice)", n_cov, triangle=tri, edge=ids(bedges[r]))
+    if n_hang and not hanging_first:
+        _hanging(found, hits, n_hang, bedges, btris)
     if n_near and not found.stop and not crossing[0] and not n_cov:
         v, r, d = int(near[0]), int(near[1]), float(near[2])
         tri = int(btris[r]) + found.base
@@ -615,6 +614,15 @@ def _boundary(found: _Found, p: NDArray, topo: _Topology, covers: bool) -> None:
                   f"{tuple(ids(bedges[r]))} of triangle {tri} by only {d:.2g} times its length "
                   "(outside it: a crack; refinement decides it exactly)", n_near,
                   vertex=v + found.base, edge=ids(bedges[r]), triangle=tri, distance=d)
+
+
+def _hanging(found: _Found, hits: NDArray, count: int, bedges: NDArray, btris: NDArray
+             ) -> None:
+    v, row = (int(x) for x in hits[0])
+    edge, tri = found.ids(bedges[row]), int(btris[row]) + found.base
+    found.add("hanging-node", f"vertex {v + found.base} lies inside edge {tuple(edge)} of "
+              f"triangle {tri} (a hanging node: the mesh is not conforming there)",
+              count, vertex=v + found.base, edge=edge, triangle=tri)
 
 
 def hanging_nodes(points: NDArray, bedges: NDArray) -> tuple[int, NDArray[np.int64]]:

@@ -82,14 +82,17 @@ def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool
         length (not on it).
     nearest : (3,) float64
         ``(vertex, row, relative distance)`` of the nearest of them.
+    firsts : (2,) int64
+        Sweep positions of the first hanging node and of the first doubly covered edge
+        (``-1``: none), so that a full report lists first what validation stops at.
     work : int
         Orientation tests made (for tests of the cost bound).
     """
     e = np.ascontiguousarray(bedges, dtype=np.int64).reshape(-1, 2)
     p = np.ascontiguousarray(points, dtype=np.float64)
     if len(e) == 0:
-        return (0, np.empty((0, 2), np.int64), np.array([0, -1, -1]), 0, -1, 0, np.zeros(3),
-                0)
+        return (0, np.empty((0, 2), np.int64), np.array([0, -1, -1]), 0, -1, 0,
+                np.full(3, -1.0), np.full(2, -1), 0)
     verts = np.unique(e)
     x, y = p[verts, 0], p[verts, 1]
     order = np.lexsort((y, x))
@@ -240,6 +243,7 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
     root = -1
     n_near = 0
     near = np.full(3, -1.0)
+    firsts = np.full(2, -1, dtype=np.int64)
     n_hang = 0
     hit = -1
     n_cov = 0
@@ -272,7 +276,7 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                 if _crosses(p, lo, hi, below, above, buf):
                     crossing[0], crossing[1], crossing[2] = 1, below, above
                     return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
-                            n_near, near, work)
+                            n_near, near, firsts, work)
         # 2. the vertex against the edges that pass it: its search in the tree is the
         # descent of the first edge inserted in 3. (a search of its own without one)
         v = rep[k]
@@ -314,7 +318,7 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                         if delta[s] == delta[y]:
                             crossing[0], crossing[1], crossing[2] = 2, y, s
                             return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov,
-                                    first_cov, n_near, near, work)
+                                    first_cov, n_near, near, firsts, work)
                         o = delta[s]
                 elif search:
                     if o > 0:
@@ -329,11 +333,13 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
             if search:
                 found = _found(v, y, on_edge, under, over, p, lo, hi, vx, vy, hits, near,
                                cap, n_hang)
+                if found[0] and firsts[0] < 0:
+                    firsts[0] = k
                 n_hang += found[0]
                 n_near += found[1]
                 if on_edge and stop_first:
                     return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
-                            n_near, near, work)
+                            n_near, near, firsts, work)
             par[s] = q
             if q < 0:
                 root = s
@@ -350,15 +356,17 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                     if _crosses(p, lo, hi, nb, s, buf):
                         crossing[0], crossing[1], crossing[2] = 1, nb, s
                         return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
-                                n_near, near, work)
+                                n_near, near, firsts, work)
         if start_at[k] == start_at[k + 1]:
             found = _found(v, y, on_edge, under, over, p, lo, hi, vx, vy, hits, near, cap,
                            n_hang)
+            if found[0] and firsts[0] < 0:
+                firsts[0] = k
             n_hang += found[0]
             n_near += found[1]
             if on_edge and stop_first:
                 return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov, n_near,
-                        near, work)
+                        near, firsts, work)
         if not covers:
             continue
         # covers of the new edges, each run of them from the edge below it upwards
@@ -375,9 +383,11 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                 if c < 0 or c > 1:
                     if n_cov == 0:
                         first_cov = x
+                        firsts[1] = k
                     n_cov += 1
                     if stop_first:
                         return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
-                                n_near, near, work)
+                                n_near, near, firsts, work)
                 x = _neighbour(x, lc, rc, par, True)
-    return n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov, n_near, near, work
+    return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov, n_near, near, firsts,
+            work)
