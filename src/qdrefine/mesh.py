@@ -144,9 +144,13 @@ class Mesh:
                  point_data: Mapping[str, NDArray] | None = None,
                  cell_data: Mapping[str, NDArray] | None = None,
                  physical_names: Mapping[tuple[int, int], str] | None = None,
-                 transitions: NDArray | None = None) -> Mesh:
-        """A mesh from arrays already known to be valid (output of qdrefine's kernels)."""
+                 transitions: NDArray | None = None, buckets: EdgeBuckets | None = None
+                 ) -> Mesh:
+        """A mesh from arrays already known to be valid (output of qdrefine's kernels or of
+        :func:`qdrefine.check.find`, whose ``buckets`` the first refinement then reuses)."""
         mesh = object.__new__(cls)
+        if buckets is not None:
+            object.__setattr__(mesh, "_buckets", buckets)
         for name, value in (("points", points), ("triangles", triangles),
                             ("cell_tags", cell_tags), ("edges", edges),
                             ("edge_tags", edge_tags),
