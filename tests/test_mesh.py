@@ -274,3 +274,20 @@ def test_sweep_work_is_at_most_b_log_b(kind, m, seed):
     found = check.find(p, t)
     if kind in ("stacked", "fan"):  # separate, non-overlapping: valid
         assert found.ok, found.errors
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(2, 60), st.integers(0, 2**32 - 1))
+def test_near_duplicates_match_all_pairs(n, seed):
+    """Clusters of points a few tolerances apart, against all pairs."""
+    rng = np.random.default_rng(seed)
+    tol = 1e-3
+    centres = rng.random((max(1, n // 4), 2))
+    q = centres[rng.integers(0, len(centres), n)] + rng.integers(-3, 4, (n, 2)) * tol / 2.5
+    q[rng.random(n) < 0.2] = q[0]  # exact copies are not near duplicates
+    count, a, b = check.near_duplicates(q, tol)
+    d = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
+    close = (d > 0) & (d <= tol)
+    assert count == int(close.any(axis=1).sum())
+    if count:
+        assert close[a, b]

@@ -34,7 +34,7 @@ from .predicates import COORDINATE_RANGE, orient_signs
 from .sweep import CROSSING, sweep
 
 __all__ = ["KINDS", "MIN_ANGLE", "Checked", "Problem", "bucket_scan", "duplicate_pairs",
-           "edge_scan", "find", "hanging_nodes", "index_dtype"]
+           "edge_scan", "find", "hanging_nodes", "index_dtype", "near_duplicates"]
 
 #: Every kind of problem: its severity and what it means (the guide's table).
 KINDS: dict[str, tuple[str, str]] = {
@@ -68,6 +68,8 @@ KINDS: dict[str, tuple[str, str]] = {
     "near-hanging-node": ("warning", "a boundary vertex off another triangle's boundary edge "
                                      "by less than 1e-12 times its length, outside it (a "
                                      "crack; inside it would be an overlap)"),
+    "near-duplicate-points": ("warning", "two used points closer than 1e-12 times the "
+                                         "mesh's extent (not identical: that is an error)"),
     "unused-points": ("warning", "points used by no triangle (kept, carried through "
                                  "refinement)"),
     "pinched-vertex": ("warning", "a vertex where separate fans of triangles touch"),
@@ -246,6 +248,8 @@ def _run(found: _Found, out: Checked, points, triangles, cell_tags, edges, edge_
     out.edges, out.edge_tags = _tagged_edges(found, edges, edge_tags, topo, n, t.dtype)
     if warnings:
         _unused(found, _used(t, n) if used is None else used)
+        if geometry:
+            _near_duplicates(found, p, np.flatnonzero(_used(t, n) if used is None else used))
         if oriented:
             _pinched(found, topo.bedges)
         if geometry:
@@ -577,6 +581,86 @@ def duplicate_pairs(p, ids, cap):
                     count += 1
                     break
     return count, pairs[:min(count, cap)]
+
+
+#: Two distinct used points closer than this times the mesh's extent are near duplicates.
+NEAR_DUPLICATE = 1e-12
+
+
+def _near_duplicates(found: _Found, p: NDArray, ids: NDArray) -> None:
+    q = p[ids]
+    if len(q) < 2:
+        return
+    extent = float(max(np.ptp(q[:, 0]), np.ptp(q[:, 1])))
+    if not extent > 0:
+        return
+    tol = NEAR_DUPLICATE * extent
+    count, a, b = near_duplicates(q, tol)
+    if count:
+        a, b = int(ids[a]), int(ids[b])
+        d = float(np.hypot(*(p[a] - p[b])))
+        found.add("near-duplicate-points", f"points {a + found.base} and {b + found.base} are "
+                  f"only {d:.2g} apart ({d / extent:.2g} of the mesh's extent) at "
+                  f"{tuple(p[a].tolist())}", count, points=[a + found.base, b + found.base],
+                  distance=d)
+
+
+def near_duplicates(q: NDArray, tol: float) -> tuple[int, int, int]:
+    """Points of ``q (K, 2)`` with another point at a distance in ``(0, tol]``: their number
+    and one such pair ``(i, j)`` (rows of ``q``; ``-1`` when none).
+
+    The points are bucketed in square cells of side ``tol / sqrt(2)`` (sorted by cell): two
+    different points in one cell are near; a point alone in its cell (or with copies only)
+    looks at the 24 cells at most two away, each scanned by at most 24 such points, so the
+    work is ``O(K log K)`` for the sort and ``O(K)`` after it, on any input.
+    """
+    h = tol / np.sqrt(2.0)
+    cx = np.floor((q[:, 0] - q[:, 0].min()) / h).astype(np.int64)
+    cy = np.floor((q[:, 1] - q[:, 1].min()) / h).astype(np.int64)
+    order = np.lexsort((cy, cx))
+    return _near_scan(np.ascontiguousarray(q[order]), cx[order], cy[order], order, tol * tol)
+
+
+@njit(cache=True)
+def _near_scan(q, cx, cy, order, tol2):
+    k = q.shape[0]
+    near = np.zeros(k, dtype=np.bool_)
+    first_a = first_b = -1
+    s = 0
+    while s < k:  # cells: runs of equal (cx, cy)
+        e = s + 1
+        while e < k and cx[e] == cx[s] and cy[e] == cy[s]:
+            e += 1
+        mixed = -1
+        for i in range(s + 1, e):
+            if q[i, 0] != q[s, 0] or q[i, 1] != q[s, 1]:
+                mixed = i
+                break
+        if mixed >= 0:
+            for i in range(s, e):
+                near[i] = True
+            if first_a < 0:
+                first_a, first_b = order[s], order[mixed]
+        else:  # one position: look for a different point in the neighbouring cells
+            for dx in range(-2, 3):  # a cell's side is tol / sqrt(2): two cells away
+                x = cx[s] + dx
+                lo = np.searchsorted(cx, x)  # the row of cells with this x
+                hi = np.searchsorted(cx, x + 1)
+                a = lo + np.searchsorted(cy[lo:hi], cy[s] - 2)
+                b = lo + np.searchsorted(cy[lo:hi], cy[s] + 3)
+                for j in range(a, b):
+                    if s <= j < e:
+                        continue
+                    ddx, ddy = q[j, 0] - q[s, 0], q[j, 1] - q[s, 1]
+                    d2 = ddx * ddx + ddy * ddy
+                    if 0 < d2 <= tol2:
+                        for i in range(s, e):
+                            near[i] = True
+                        if first_a < 0:
+                            first_a, first_b = order[s], order[j]
+                        break
+        s = e
+    return int(near.sum()), first_a, first_b
 
 
 def _boundary(found: _Found, p: NDArray, topo: _Topology, covers: bool) -> None:
