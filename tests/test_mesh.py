@@ -291,3 +291,33 @@ def test_near_duplicates_match_all_pairs(n, seed):
     assert count == int(close.any(axis=1).sum())
     if count:
         assert close[a, b]
+
+
+@pytest.mark.parametrize("scheme", ["7t-qd", "4t-red"])
+def test_first_refinement_reuses_the_validation_edges(scheme):
+    """Issue 16: one edge numbering per mesh. The sorted edges of the validation serve the
+    first uniform refinement (then they are released), with a result bit for bit equal to
+    sorting them again; pickling leaves them out."""
+    import pickle
+
+    from qdrefine import refine
+    from qdrefine.numbering import sort_edges
+
+    base = examples.jittered_square(12, seed=3)
+    p, t = np.array(base.points), np.array(base.triangles)
+    mesh = Mesh(p, t)
+    kept = mesh.__dict__["_buckets"]
+    again = sort_edges(mesh.triangles, mesh.n_points)
+    for name in ("starts", "first", "local"):
+        assert np.array_equal(getattr(kept, name), getattr(again, name))
+    copy = pickle.loads(pickle.dumps(mesh))
+    assert "_buckets" not in copy.__dict__
+    fine = refine(mesh, scheme)
+    assert "_buckets" not in mesh.__dict__
+    for other in (refine(mesh, scheme), refine(copy, scheme)):
+        assert np.array_equal(other.points, fine.points)
+        assert np.array_equal(other.triangles, fine.triangles)
+    two = refine(Mesh(p, t), scheme, 2)
+    twice = refine(refine(copy, scheme), scheme)
+    assert np.array_equal(two.points, twice.points)
+    assert np.array_equal(two.triangles, twice.triangles)

@@ -169,7 +169,13 @@ class Mesh:
         return self.__dict__.pop("_buckets", None)
 
     def __getstate__(self) -> dict[str, Any]:
-        return {k: v for k, v in self.__dict__.items() if k != "_buckets"}
+        """Pickled without the kept edges; read-only mappings as plain dicts."""
+        return {k: dict(v) if isinstance(v, MappingProxyType) else v
+                for k, v in self.__dict__.items() if k != "_buckets"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        for k, v in state.items():
+            object.__setattr__(self, k, MappingProxyType(v) if isinstance(v, dict) else v)
 
     @property
     def n_points(self) -> int:
