@@ -232,7 +232,7 @@ def _run(found: _Found, out: Checked, points, triangles, cell_tags, edges, edge_
     used = None
     if not found.stop:
         used = _used(t, n)
-        out.summary = _summary(t, used, topo)
+        out.summary = _summary(t, used, topo) | {"numbered_from": found.base}
     manifold = _overused(found, topo)
     if oriented:
         oriented = _folded(found, topo) and manifold
