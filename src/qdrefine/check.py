@@ -31,7 +31,7 @@ from .jit import threads_for
 from .memory import check_needed, validation_needed
 from .numbering import EdgeBuckets, sort_edges
 from .predicates import COORDINATE_RANGE, orient_signs
-from .sweep import CROSSING, sweep
+from .sweep import CROSSING, sweep, vertices_of
 
 __all__ = ["KINDS", "MIN_ANGLE", "Checked", "Problem", "bucket_scan", "duplicate_pairs",
            "edge_scan", "find", "hanging_nodes", "index_dtype", "near_duplicates"]
@@ -239,7 +239,8 @@ def _run(found: _Found, out: Checked, points, triangles, cell_tags, edges, edge_
     if geometry:
         # validation: duplicates among boundary vertices; one at an inner vertex is always
         # an overlap too, which the sweep finds
-        _duplicates(found, p, np.unique(topo.bedges) if used is None else np.flatnonzero(used))
+        _duplicates(found, p, vertices_of(topo.bedges, n) if used is None else
+                    np.flatnonzero(used))
         if flat:
             _boundary(found, p, topo, oriented)
         else:

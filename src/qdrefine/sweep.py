@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 
 from .predicates import FILTER, SCRATCH, orient_sign
 
-__all__ = ["CROSSING", "NEAR", "SAME_SIDE", "sweep"]
+__all__ = ["CROSSING", "NEAR", "SAME_SIDE", "sweep", "vertices_of"]
 
 CROSSING = 1  #: two boundary edges cross at a point inside both
 SAME_SIDE = 2  #: two boundary edges overlap along a segment with their triangles on one side
@@ -93,10 +93,11 @@ def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool
     if len(e) == 0:
         return (0, np.empty((0, 2), np.int64), np.array([0, -1, -1]), 0, -1, 0,
                 np.full(3, -1.0), np.full(2, -1), 0)
-    verts = np.unique(e)
-    x, y = p[verts, 0], p[verts, 1]
-    order = np.lexsort((y, x))
-    xs, ys = x[order], y[order]
+    verts = vertices_of(e, len(p))
+    xy = np.empty(len(verts), dtype=np.complex128)  # complex numbers sort by (real, imag):
+    xy.real, xy.imag = p[verts, 0], p[verts, 1]  # lexicographic, 2-3x faster than lexsort
+    order = np.argsort(xy)
+    xs, ys = xy.real[order], xy.imag[order]
     new = np.ones(len(order), dtype=bool)
     new[1:] = (xs[1:] != xs[:-1]) | (ys[1:] != ys[:-1])
     rank_sorted = np.cumsum(new) - 1
@@ -110,13 +111,36 @@ def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool
     delta = np.where(forward, 1, -1).astype(np.int64)
     live = ra != rb  # a zero-length edge (duplicate points) is reported elsewhere
     rows = np.flatnonzero(live)
-    by_start = rows[np.argsort(rank[lo[rows]], kind="stable")]
-    by_end = rows[np.argsort(rank[hi[rows]], kind="stable")]
     n_ranks = len(rep)
-    start_at = np.searchsorted(rank[lo[by_start]], np.arange(n_ranks + 1))
-    end_at = np.searchsorted(rank[hi[by_end]], np.arange(n_ranks + 1))
+    by_start, start_at = _counting_sort(rows, rank[lo[rows]], n_ranks)
+    by_end, end_at = _counting_sort(rows, rank[hi[rows]], n_ranks)
     return _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers,
                   stop_first, cap)
+
+
+def vertices_of(edges: NDArray[np.integer], n: int) -> NDArray[np.int64]:
+    """The sorted distinct vertices of ``edges (B, 2)`` (indices below ``n``), by a mask:
+    linear (``np.unique`` hashes or sorts, several times slower on millions)."""
+    mask = np.zeros(max(n, 1), dtype=np.bool_)
+    mask[edges.ravel()] = True
+    return np.flatnonzero(mask)
+
+
+@njit(cache=True)
+def _counting_sort(rows, keys, n_keys):
+    """``rows`` ordered by ``keys`` (integers below ``n_keys``, stable) and where each key's
+    run starts ``(n_keys + 1,)``: linear."""
+    at = np.zeros(n_keys + 1, dtype=np.int64)
+    for k in keys:
+        at[k + 1] += 1
+    for k in range(n_keys):
+        at[k + 1] += at[k]
+    fill = at[:-1].copy()
+    out = np.empty_like(rows)
+    for i in range(rows.shape[0]):
+        out[fill[keys[i]]] = rows[i]
+        fill[keys[i]] += 1
+    return out, at
 
 
 @njit(inline="always", cache=True)
