@@ -16,6 +16,8 @@ Reports, as a table and as JSON (``--json FILE``):
   first crossing); ``grid``, separate small triangles one per cell (valid): the time of
   ``Mesh(p, t)`` (or of its refusal) and of ``check.find`` (every problem), and the number of
   orientation tests of the sweep over ``B log2 B`` at a tenth and at the full size;
+* near-duplicate points: the cell grid of ``check.near_duplicates`` against SciPy's
+  ``cKDTree.query_pairs`` on 1 M points, some of them clustered (CPU seconds);
 * the load average before and after (the development machine is shared: times are noisy).
 
 Run: ``python benchmarks/validation_bench.py [--repeat 5] [--soup 300000] [--json out.json]``.
@@ -144,6 +146,30 @@ def soups(m: int) -> dict:
     return out
 
 
+def near_duplicates_vs_scipy(n: int = 1_000_000) -> dict:
+    """CPU seconds of ``check.near_duplicates`` (cell grid) and of SciPy's
+    ``cKDTree(q).query_pairs(tol)`` on ``n`` random points, with ``k`` of them clustered
+    within ``tol``: the pairs (and SciPy's time and memory) grow as ``k^2``."""
+    try:
+        from scipy.spatial import cKDTree
+    except ImportError:
+        return {"scipy": "not installed"}
+    rng = np.random.default_rng(0)
+    check.near_duplicates(rng.random((100, 2)), 1e-12)  # compiled
+    out = {}
+    for k in (0, 2000, 8000):
+        q = rng.random((n, 2))
+        q[:k] = 0.5 + rng.random((k, 2)) * 1e-13
+        c0 = time.process_time()
+        ours = check.near_duplicates(q, 1e-12)[0]
+        c1 = time.process_time()
+        pairs = len(cKDTree(q).query_pairs(1e-12, output_type="ndarray"))
+        c2 = time.process_time()
+        out[f"{n}_points_{k}_clustered"] = {"grid_cpu_s": c1 - c0, "ckdtree_cpu_s": c2 - c1,
+                                            "near_points": int(ours), "ckdtree_pairs": pairs}
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
@@ -160,6 +186,7 @@ def main() -> None:
         ours = res[name][f"{numba.config.NUMBA_NUM_THREADS}_threads"]["out_tri_per_s"]
         res[name]["scikit-fem"] = scikit_fem(mesh, ours, args.repeat)
     res["soups"] = soups(args.soup)
+    res["near_duplicates"] = near_duplicates_vs_scipy()
     res["load_after"] = os.getloadavg()
     print(json.dumps(res, indent=1))
     if args.json:
