@@ -673,25 +673,16 @@ def _boundary(found: _Found, p: NDArray, topo: _Topology, covers: bool) -> None:
     n_hang, hits, crossing, n_cov, first_cov, n_near, near, firsts, _ = sweep(
         p, bedges, covers, found.stop, _CAP)
     ids = found.ids
-    hanging_first = n_hang and not (n_cov and firsts[1] < firsts[0])
-    if hanging_first:  # the sweep's order: validation stops at the first of the two
-        _hanging(found, hits, n_hang, bedges, btris)
+    add = []  # (when found, how to report), reported in the sweep's order
+    if n_hang:
+        add.append((firsts[0], lambda: _hanging(found, hits, n_hang, bedges, btris)))
     if crossing[0]:
-        r, s = int(crossing[1]), int(crossing[2])
-        ta, tb = int(btris[r]) + found.base, int(btris[s]) + found.base
-        how = ("cross" if crossing[0] == CROSSING else
-               "run along each other with both triangles on the same side")
-        found.add("self-intersection", f"edge {tuple(ids(bedges[r]))} of triangle {ta} and "
-                  f"edge {tuple(ids(bedges[s]))} of triangle {tb} {how}: the mesh overlaps "
-                  "itself there", 1, triangles=[ta, tb], edges=[ids(bedges[r]), ids(bedges[s])])
-    elif n_cov:
-        r = int(first_cov)
-        tri = int(btris[r]) + found.base
-        found.add("overlap", f"triangle {tri} {tuple(ids(topo.t[btris[r]]))} overlaps another "
-                  f"part of the mesh (the area along its edge {tuple(ids(bedges[r]))} is "
-                  "covered twice)", n_cov, triangle=tri, edge=ids(bedges[r]))
-    if n_hang and not hanging_first:
-        _hanging(found, hits, n_hang, bedges, btris)
+        add.append((firsts[2], lambda: _crossing(found, crossing, bedges, btris)))
+    if n_cov:
+        add.append((firsts[1], lambda: _covered(found, first_cov, n_cov, bedges, btris,
+                                                topo.t)))
+    for _, report in sorted(add, key=lambda x: x[0]):
+        report()
     if n_near and not found.stop and not crossing[0] and not n_cov:
         v, r, d = int(near[0]), int(near[1]), float(near[2])
         tri = int(btris[r]) + found.base
@@ -699,6 +690,25 @@ def _boundary(found: _Found, p: NDArray, topo: _Topology, covers: bool) -> None:
                   f"{tuple(ids(bedges[r]))} of triangle {tri} by only {d:.2g} times its length "
                   "(outside it: a crack; refinement decides it exactly)", n_near,
                   vertex=v + found.base, edge=ids(bedges[r]), triangle=tri, distance=d)
+
+
+def _crossing(found: _Found, crossing: NDArray, bedges: NDArray, btris: NDArray) -> None:
+    r, s = int(crossing[1]), int(crossing[2])
+    ta, tb = int(btris[r]) + found.base, int(btris[s]) + found.base
+    how = ("cross" if crossing[0] == CROSSING else
+           "run along each other with both triangles on the same side")
+    found.add("self-intersection", f"edge {tuple(found.ids(bedges[r]))} of triangle {ta} and "
+              f"edge {tuple(found.ids(bedges[s]))} of triangle {tb} {how}: the mesh overlaps "
+              "itself there", 1, triangles=[ta, tb],
+              edges=[found.ids(bedges[r]), found.ids(bedges[s])])
+
+
+def _covered(found: _Found, row: int, count: int, bedges: NDArray, btris: NDArray,
+             t: NDArray) -> None:
+    tri = int(btris[row]) + found.base
+    found.add("overlap", f"triangle {tri} {tuple(found.ids(t[btris[row]]))} overlaps another "
+              f"part of the mesh (the area along its edge {tuple(found.ids(bedges[row]))} is "
+              "covered twice)", count, triangle=tri, edge=found.ids(bedges[row]))
 
 
 def _hanging(found: _Found, hits: NDArray, count: int, bedges: NDArray, btris: NDArray

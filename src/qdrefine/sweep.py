@@ -82,9 +82,10 @@ def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool
         length (not on it).
     nearest : (3,) float64
         ``(vertex, row, relative distance)`` of the nearest of them.
-    firsts : (2,) int64
-        Sweep positions of the first hanging node and of the first doubly covered edge
-        (``-1``: none), so that a full report lists first what validation stops at.
+    firsts : (3,) int64
+        When the first hanging node, the first doubly covered edge and the crossing were
+        found (the count of tests then; ``-1``: none), so that a full report lists them in
+        the order validation meets them.
     work : int
         Orientation tests made (for tests of the cost bound).
     """
@@ -92,7 +93,7 @@ def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool
     p = np.ascontiguousarray(points, dtype=np.float64)
     if len(e) == 0:
         return (0, np.empty((0, 2), np.int64), np.array([0, -1, -1]), 0, -1, 0,
-                np.full(3, -1.0), np.full(2, -1), 0)
+                np.full(3, -1.0), np.full(3, -1), 0)
     verts = vertices_of(e, len(p))
     xy = np.empty(len(verts), dtype=np.complex128)  # complex numbers sort by (real, imag):
     xy.real, xy.imag = p[verts, 0], p[verts, 1]  # lexicographic, 2-3x faster than lexsort
@@ -267,7 +268,7 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
     root = -1
     n_near = 0
     near = np.full(3, -1.0)
-    firsts = np.full(2, -1, dtype=np.int64)
+    firsts = np.full(3, -1, dtype=np.int64)
     n_hang = 0
     hit = -1
     n_cov = 0
@@ -299,6 +300,7 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                 work += 4
                 if _crosses(p, lo, hi, below, above, buf):
                     crossing[0], crossing[1], crossing[2] = 1, below, above
+                    firsts[2] = work
                     return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
                             n_near, near, firsts, work)
         # 2. the vertex against the edges that pass it: its search in the tree is the
@@ -341,6 +343,7 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                     if o == 0:
                         if delta[s] == delta[y]:
                             crossing[0], crossing[1], crossing[2] = 2, y, s
+                            firsts[2] = work
                             return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov,
                                     first_cov, n_near, near, firsts, work)
                         o = delta[s]
@@ -358,7 +361,7 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                 found = _found(v, y, on_edge, under, over, p, lo, hi, vx, vy, hits, near,
                                cap, n_hang)
                 if found[0] and firsts[0] < 0:
-                    firsts[0] = k
+                    firsts[0] = work
                 n_hang += found[0]
                 n_near += found[1]
                 if on_edge and stop_first:
@@ -379,13 +382,14 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                     work += 4
                     if _crosses(p, lo, hi, nb, s, buf):
                         crossing[0], crossing[1], crossing[2] = 1, nb, s
+                        firsts[2] = work
                         return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
                                 n_near, near, firsts, work)
         if start_at[k] == start_at[k + 1]:
             found = _found(v, y, on_edge, under, over, p, lo, hi, vx, vy, hits, near, cap,
                            n_hang)
             if found[0] and firsts[0] < 0:
-                firsts[0] = k
+                firsts[0] = work
             n_hang += found[0]
             n_near += found[1]
             if on_edge and stop_first:
@@ -407,7 +411,7 @@ def _sweep(p, lo, hi, delta, rep, by_start, start_at, by_end, end_at, covers, st
                 if c < 0 or c > 1:
                     if n_cov == 0:
                         first_cov = x
-                        firsts[1] = k
+                        firsts[1] = work
                     n_cov += 1
                     if stop_first:
                         return (n_hang, hits[:min(n_hang, cap)], crossing, n_cov, first_cov,
