@@ -404,3 +404,21 @@ def test_import_from_a_read_only_install(tmp_path):
     assert where.startswith(str(pkg)) and cache.startswith(str(tmp_path / "tmp"))
     assert result.stderr.count("\n") == 1
     assert result.stderr.startswith("qdrefine: note: ") and cache in result.stderr
+
+
+def test_validation_memory_is_checked(monkeypatch):
+    """Issue 17: the memory check covers validation too (before the edge sort, and before
+    the sweep with the number of boundary edges known)."""
+    from qdrefine.memory import validation_needed
+
+    mesh = examples.square(30)
+    p, t = np.array(mesh.points), np.array(mesh.triangles)
+    need = validation_needed(len(p), len(t), 0)
+    assert need > 16 * len(p) + 12 * len(t)
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, str(need // 2))
+    with pytest.raises(MemoryError, match=rf"^validating {len(t)} triangles needs about "):
+        Mesh(p, t)
+    with pytest.raises(MemoryError, match="validating"):
+        check.find(p, t)
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, str(need + 160 * 3 * len(t)))
+    assert Mesh(p, t).n_triangles == len(t)

@@ -32,6 +32,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import qdrefine  # noqa: E402
+from qdrefine import examples  # noqa: E402
 
 START = "<!-- hostile input: written by benchmarks/robustness/bad_input.py -->"
 END = "<!-- end of hostile input -->"
@@ -44,6 +45,13 @@ def _needles() -> str:
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "n.msh"
         qdrefine.write(path, qdrefine.Mesh(points, [[0, 1, 2], [0, 3, 1]]))
+        return path.read_text()
+
+
+def _square(n: int) -> str:
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "s.msh"
+        qdrefine.write(path, examples.square(n))
         return path.read_text()
 
 
@@ -69,8 +77,8 @@ def cases() -> list[Case]:
          ["check", "in.msh"], True),
         ("refused at level 2: names the input triangle", {"in.msh": _needles()},
          ["refine", "in.msh", "out.msh", "--levels", "2"], False),
-        ("validation over the memory limit", {"in.msh": msh22(SQ, SQ_TRIS)},
-         ["refine", "in.msh", "out.vtu", "ENV:QDREFINE_MEMORY_LIMIT=1KiB"], False),
+        ("validation over the memory limit", {"in.msh": _square(30)},
+         ["refine", "in.msh", "out.vtu", "ENV:QDREFINE_MEMORY_LIMIT=50KiB"], False),
     ]
 
 
