@@ -20,7 +20,8 @@ Reports, as a table and as JSON (``--json FILE``):
   ``cKDTree.query_pairs`` on 1 M points, some of them clustered (CPU seconds);
 * the load average before and after (the development machine is shared: times are noisy).
 
-Run: ``python benchmarks/validation_bench.py [--repeat 5] [--soup 300000] [--json out.json]``.
+Run: ``python benchmarks/validation_bench.py [--repeat 5] [--soup 300000] [--json out.json]``;
+``--summarize A.json B.json`` prints the table of ``docs/performance.md``.
 """
 
 from __future__ import annotations
@@ -170,14 +171,57 @@ def near_duplicates_vs_scipy(n: int = 1_000_000) -> dict:
     return out
 
 
+def summarize(paths: list[str]) -> str:
+    """Markdown tables of several runs' JSON files, one column per run."""
+    runs = [json.load(open(p)) for p in paths]
+    names = [os.path.basename(p) for p in paths]
+    w = ["| | " + " | ".join(names) + " |", "|---" * (len(runs) + 1) + "|",
+         "| load average before / after | " + " | ".join(
+             f"{r['load_before'][0]:.1f} / {r['load_after'][0]:.1f}" for r in runs) + " |"]
+    for mesh in [k for k in runs[0] if k.startswith(("grid_", "shuffled_"))]:
+        for th in [k for k in runs[0][mesh] if k.endswith("_threads")]:
+            def cell(r, m=mesh, t=th):
+                x = r[m][t]
+                return (f"{x['refine_s']:.3f} / {x['mesh_s']:.3f} / "
+                        f"{x['mesh_and_refine_s']:.3f} s: **{x['ratio']:.2f}x** "
+                        f"(CPU {x['ratio_cpu']:.2f}x)")
+            w.append(f"| {mesh}, {th.replace('_', ' ')}: refine / Mesh / refine(Mesh) | "
+                     + " | ".join(cell(r) for r in runs) + " |")
+        w.append(f"| {mesh}: refine(Mesh(p, t)) vs fresh skfem MeshTri(p, t).refined() | "
+                 + " | ".join(
+                     f"{r[mesh]['scikit-fem']['qdrefine_out_tri_per_s'] / 1e6:.1f} vs "
+                     f"{r[mesh]['scikit-fem']['skfem_out_tri_per_s'] / 1e6:.2f} M/s: "
+                     f"**{r[mesh]['scikit-fem']['ratio']:.1f}x**" for r in runs) + " |")
+    for kind in runs[0]["soups"]:
+        for size in runs[0]["soups"][kind]:
+            w.append(f"| soup `{kind}` {int(size):,}: Mesh wall (CPU) s, check.find s | "
+                     + " | ".join(
+                         f"{r['soups'][kind][size]['mesh_s']:.2f} "
+                         f"({r['soups'][kind][size].get('mesh_cpu_s', float('nan')):.2f}), "
+                         f"{r['soups'][kind][size]['check_find_s']:.2f}" for r in runs) + " |")
+    for key in runs[-1].get("near_duplicates", {}):
+        w.append(f"| near duplicates, {key.replace('_', ' ')}: grid vs cKDTree CPU s | "
+                 + " | ".join(
+                     (f"{r['near_duplicates'][key]['grid_cpu_s']:.2f} vs "
+                      f"{r['near_duplicates'][key]['ckdtree_cpu_s']:.2f} "
+                      f"({r['near_duplicates'][key]['ckdtree_pairs']:,} pairs)")
+                     if key in r.get("near_duplicates", {}) else "-" for r in runs) + " |")
+    return "\n".join(w)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--summarize", nargs="+", metavar="JSON",
+                    help="print the tables of docs/performance.md from these runs, run nothing")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--size", type=float, default=2.0, help="million triangles (default 2)")
     ap.add_argument("--soup", type=int, default=300_000)
     ap.add_argument("--no-shuffled", action="store_true", help="the structured mesh only")
     ap.add_argument("--json", help="write the results here")
     args = ap.parse_args()
+    if args.summarize:
+        print(summarize(args.summarize))
+        return
     res: dict = {"load_before": os.getloadavg(), "threads": numba.config.NUMBA_NUM_THREADS}
     for shuffled in (False,) if args.no_shuffled else (False, True):
         mesh = grid(args.size, shuffled)
