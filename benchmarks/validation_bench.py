@@ -181,6 +181,8 @@ def summarize(paths: list[str]) -> str:
     for mesh in [k for k in runs[0] if k.startswith(("grid_", "shuffled_"))]:
         for th in [k for k in runs[0][mesh] if k.endswith("_threads")]:
             def cell(r, m=mesh, t=th):
+                if m not in r:
+                    return "-"
                 x = r[m][t]
                 return (f"{x['refine_s']:.3f} / {x['mesh_s']:.3f} / "
                         f"{x['mesh_and_refine_s']:.3f} s: **{x['ratio']:.2f}x** "
@@ -191,7 +193,8 @@ def summarize(paths: list[str]) -> str:
                  + " | ".join(
                      f"{r[mesh]['scikit-fem']['qdrefine_out_tri_per_s'] / 1e6:.1f} vs "
                      f"{r[mesh]['scikit-fem']['skfem_out_tri_per_s'] / 1e6:.2f} M/s: "
-                     f"**{r[mesh]['scikit-fem']['ratio']:.1f}x**" for r in runs) + " |")
+                     f"**{r[mesh]['scikit-fem']['ratio']:.1f}x**" if mesh in r else "-"
+                     for r in runs) + " |")
     for kind in runs[0]["soups"]:
         for size in runs[0]["soups"][kind]:
             w.append(f"| soup `{kind}` {int(size):,}: Mesh wall (CPU) s, check.find s | "
