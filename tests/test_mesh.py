@@ -321,3 +321,22 @@ def test_first_refinement_reuses_the_validation_edges(scheme):
     twice = refine(refine(copy, scheme), scheme)
     assert np.array_equal(two.points, twice.points)
     assert np.array_equal(two.triangles, twice.triangles)
+
+
+@settings(max_examples=5, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([300, 3000, 100_000]))
+def test_parallel_bucket_scan_equals_the_serial_edge_scan(seed, n_points):
+    """Many chunks on every thread (40,000 random triangles, so edges used once, twice either
+    way and more often): the same counts, first edges and boundary as the serial scan."""
+    from qdrefine.kernels import number_edges
+    from qdrefine.numbering import sort_edges
+
+    rng = np.random.default_rng(seed)
+    t = rng.integers(0, n_points, size=(40_000, 3)).astype(np.int32)
+    t = t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 0] != t[:, 2])]
+    e, tri_edges, counts = number_edges(t, n_points)
+    serial = check.edge_scan(t, tri_edges, counts)
+    b = sort_edges(t, n_points)
+    par = check.bucket_scan(t, b.local, b.starts, b.first, b.shift, b.mult)
+    assert serial[:4] == par[:4]
+    assert np.array_equal(serial[4], par[4]) and np.array_equal(serial[5], par[5])
