@@ -325,9 +325,10 @@ def test_first_refinement_reuses_the_validation_edges(scheme):
 
 @settings(max_examples=5, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.sampled_from([300, 3000, 100_000]))
-def test_parallel_bucket_scan_equals_the_serial_edge_scan(seed, n_points):
-    """Many chunks on every thread (40,000 random triangles, so edges used once, twice either
-    way and more often): the same counts, first edges and boundary as the serial scan."""
+def test_bucket_scan_equals_the_edge_scan(seed, n_points):
+    """40,000 random triangles (edges used once, twice either way and more often): the scan
+    of the sorted buckets gives the counts, first edges and boundary of the scan of global
+    edge ids."""
     from qdrefine.kernels import number_edges
     from qdrefine.numbering import sort_edges
 
@@ -337,6 +338,6 @@ def test_parallel_bucket_scan_equals_the_serial_edge_scan(seed, n_points):
     e, tri_edges, counts = number_edges(t, n_points)
     serial = check.edge_scan(t, tri_edges, counts)
     b = sort_edges(t, n_points)
-    par = check.bucket_scan(t, b.local, b.starts, b.first, b.shift, b.mult)
-    assert serial[:4] == par[:4]
-    assert np.array_equal(serial[4], par[4]) and np.array_equal(serial[5], par[5])
+    scan = check.bucket_scan(t, b.local, b.starts, b.first, b.shift, b.mult)
+    assert serial[:4] == scan[:4]
+    assert np.array_equal(serial[4], scan[4]) and np.array_equal(serial[5], scan[5])

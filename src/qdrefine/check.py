@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
-from .jit import CHUNK, threads_for
+from .jit import threads_for
 from .memory import check_needed, validation_needed
 from .numbering import EdgeBuckets, sort_edges
 from .predicates import COORDINATE_RANGE, orient_signs
@@ -330,22 +330,10 @@ def _coordinates(found: _Found, p: NDArray) -> bool:
     return ok
 
 
-@njit(parallel=True, cache=True)
-def _orient_signs(points, triangles):
-    """:func:`qdrefine.predicates.orient_signs` in parallel chunks of triangles."""
-    m = triangles.shape[0]
-    out = np.empty(m, dtype=np.int8)
-    for c in prange((m + CHUNK - 1) // CHUNK):
-        lo = c * CHUNK
-        out[lo:min(m, lo + CHUNK)] = orient_signs(points, triangles[lo:min(m, lo + CHUNK)])
-    return out
-
-
 def _orientation(found: _Found, p: NDArray, t: NDArray, flip: bool) -> tuple[bool, bool]:
     """Zero-area and clockwise triangles; flips the clockwise rows of ``t`` when ``flip``.
     True when every triangle is (now) counter-clockwise, and True when none has zero area."""
-    with threads_for(len(t)):
-        signs = _orient_signs(p, t)
+    signs = orient_signs(p, t)
     zero = signs == 0
     if zero.any():
         i = int(np.flatnonzero(zero)[0])
@@ -378,9 +366,8 @@ class _Topology:
     def __init__(self, t: NDArray, n: int, buckets: EdgeBuckets) -> None:
         self.t, self.n, self.buckets = t, n, buckets
         b = buckets
-        with threads_for(t.shape[0]):
-            (self.n_over, self.first_over, self.n_fold, self.first_fold, self.bedges,
-             self.btris) = bucket_scan(t, b.local, b.starts, b.first, b.shift, b.mult)
+        (self.n_over, self.first_over, self.n_fold, self.first_fold, self.bedges,
+         self.btris) = bucket_scan(t, b.local, b.starts, b.first, b.shift, b.mult)
         self._edges: tuple[NDArray, NDArray] | None = None
 
     @property
@@ -421,77 +408,46 @@ def _summary(t: NDArray, used: NDArray, topo: _Topology) -> dict[str, Any]:
             "euler_characteristic": n_used - n_edges + len(t)}
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True)
 def bucket_scan(t, local, starts, first, shift, mult):
     """:func:`edge_scan` from the sorted edges of :func:`qdrefine.numbering.sort_edges`
-    (``local``, ``starts``, ``first``, ``shift`` and the multiplicities ``mult``), in
-    parallel over chunks of triangles (the same result for any number of threads).
-
-    An edge with two half-edges is folded unless exactly one of them runs from its smaller
-    vertex: the first pass lets every such half-edge claim the edge (one write wins), the
-    second flags the edge when a forward half-edge lost (two forward) or none claimed it
-    (two backward)."""
-    m = t.shape[0]
+    (``local``, ``starts``, ``first``, ``shift`` and the multiplicities ``mult``)."""
     ne = first[first.shape[0] - 1]
-    n_chunks = (m + CHUNK - 1) // CHUNK
-    per_chunk = np.zeros(n_chunks + 1, dtype=np.int64)
-    owner = np.full(ne, -1, dtype=local.dtype)  # a half-edge index 3 k + i fits local's type
-    for c in prange(n_chunks):
-        n_b = 0
-        for k in range(c * CHUNK, min(m, (c + 1) * CHUNK)):
-            for i in range(3):
-                u, v = t[k, i], t[k, (i + 1) % 3]
-                b = min(u, v) >> shift
-                cnt = mult[starts[b] + local[k, i]]
-                if cnt == 1:
-                    n_b += 1
-                elif cnt == 2 and u < v:
-                    owner[first[b] + local[k, i]] = 3 * k + i
-        per_chunk[c + 1] = n_b
-    for c in range(n_chunks):
-        per_chunk[c + 1] += per_chunk[c]
-    n_boundary = per_chunk[n_chunks]
+    n_boundary = 0
+    for b in range(first.shape[0] - 1):
+        for u in range(first[b + 1] - first[b]):
+            if mult[starts[b] + u] == 1:
+                n_boundary += 1
     bedges = np.empty((n_boundary, 2), dtype=np.int64)
     btris = np.empty(n_boundary, dtype=np.int64)
-    folded = np.zeros(ne, dtype=np.bool_)
-    for c in prange(n_chunks):
-        j = per_chunk[c]
-        for k in range(c * CHUNK, min(m, (c + 1) * CHUNK)):
-            for i in range(3):
-                u, v = t[k, i], t[k, (i + 1) % 3]
-                b = min(u, v) >> shift
-                cnt = mult[starts[b] + local[k, i]]
-                if cnt == 1:
-                    bedges[j, 0], bedges[j, 1] = u, v
-                    btris[j] = k
-                    j += 1
-                elif cnt == 2:
-                    g = first[b] + local[k, i]
-                    if (owner[g] != 3 * k + i) if u < v else (owner[g] < 0):
-                        folded[g] = True
-    n_buckets = first.shape[0] - 1
-    over = np.zeros(n_buckets, dtype=np.int64)
-    fold = np.zeros(n_buckets, dtype=np.int64)
-    for b in prange(n_buckets):
+    forward = np.zeros(ne, dtype=np.int8)
+    j = 0
+    for k in range(t.shape[0]):
+        for i in range(3):
+            u, v = t[k, i], t[k, (i + 1) % 3]
+            b = min(u, v) >> shift
+            cnt = mult[starts[b] + local[k, i]]
+            if cnt == 1:
+                bedges[j, 0], bedges[j, 1] = u, v
+                btris[j] = k
+                j += 1
+            elif cnt == 2 and u < v:
+                g = first[b] + local[k, i]
+                forward[g] = min(forward[g] + 1, 3)
+    n_over = n_fold = 0
+    first_over = first_fold = -1
+    for b in range(first.shape[0] - 1):
         for u in range(first[b + 1] - first[b]):
+            g = first[b] + u
             cnt = mult[starts[b] + u]
             if cnt > 2:
-                over[b] += 1
-            elif folded[first[b] + u]:
-                fold[b] += 1
-    n_over, n_fold = over.sum(), fold.sum()
-    first_over = first_fold = -1
-    for b in range(n_buckets):  # the first of each kind, in edge order
-        if first_over < 0 and over[b]:
-            for u in range(first[b + 1] - first[b]):
-                if mult[starts[b] + u] > 2:
-                    first_over = first[b] + u
-                    break
-        if first_fold < 0 and fold[b]:
-            for u in range(first[b + 1] - first[b]):
-                if mult[starts[b] + u] == 2 and folded[first[b] + u]:
-                    first_fold = first[b] + u
-                    break
+                n_over += 1
+                if first_over < 0:
+                    first_over = g
+            elif cnt == 2 and forward[g] != 1:
+                n_fold += 1
+                if first_fold < 0:
+                    first_fold = g
     return n_over, first_over, n_fold, first_fold, bedges, btris
 
 

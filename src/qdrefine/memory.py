@@ -30,14 +30,14 @@ def validation_needed(n_points: int, n_triangles: int, n_boundary: int | None = 
 
     The normalized copies (``16`` bytes per point, ``3 x 4`` or ``3 x 8`` per triangle), the
     orientation signs and the sorted edges (``1 + 30`` bytes per triangle, more with
-    ``int64`` indices), the boundary scan (``9`` bytes per edge) and, with ``n_boundary``
+    ``int64`` indices), the boundary scan (``1`` byte per edge) and, with ``n_boundary``
     boundary edges (default: as many as there are sides, a soup of separate triangles),
     the plane sweep's tables (``160`` bytes per boundary edge).
     """
     n, m = int(n_points), int(n_triangles)
     b = 3 * m if n_boundary is None else int(n_boundary)
     idx = np.dtype(index_dtype(n)).itemsize
-    return 16 * n + n + (3 * idx + 1 + 3 * (2 + 2 * idx) + 3 * idx + 27) * m + 160 * b
+    return 16 * n + n + (3 * idx + 1 + 3 * (2 + 2 * idx) + 3 * idx + 3) * m + 160 * b
 
 
 def reading_needed(n_points: int, n_triangles: int) -> int:
