@@ -44,6 +44,9 @@ SQ_TRIS = [(0, 1, 2), (0, 2, 3)]
 HANGING = [(0.0, 0.0), (2.0, 0.0), (1.0, 1.0), (1.0, 0.0), (1.0, -1.0)]
 HANGING_TRIS = [(0, 1, 2), (0, 4, 3), (3, 4, 1)]  # vertex 3 inside edge (0, 1)
 
+INNER = SQ + [(0.5, 0.5), (0.5, 0.5), (0.6, 0.5), (0.5, 0.6)]
+INNER_TRIS = [(0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4), (5, 6, 7)]  # 5 copies inner 4
+
 
 @dataclass
 class Case:
@@ -119,6 +122,21 @@ CASES: dict[str, Case] = {
         "triangles 0 and 1 lie on the same side of their common edge (0, 2)"),
     "hanging node": _content("hanging-node", HANGING, HANGING_TRIS,
                              "vertex 3 lies inside edge (0, 1) of triangle 0"),
+    "boundary edges crossing (self-intersection)": _content(
+        "self-intersection", [(0, 0), (2, 0), (0, 2), (1, -1), (1.5, -1), (1.2, 3)],
+        [(0, 1, 2), (3, 4, 5)],
+        "edge (0, 1) of triangle 0 and edge (5, 3) of triangle 1 cross: the mesh overlaps "
+        "itself"),
+    "separate piece on top (overlap, no edges cross)": _content(
+        "overlap", SQ + [(0.2, 0.2), (0.4, 0.2), (0.2, 0.4)], SQ_TRIS + [(4, 5, 6)],
+        "triangle 2 (4, 5, 6) overlaps another part of the mesh"),
+    "near-exact hanging node, inside the edge's triangle by 4e-18": _content(
+        "overlap", HANGING[:3] + [(1.0, 4e-18)] + HANGING[4:], HANGING_TRIS,
+        "triangle 0 (0, 1, 2) overlaps another part of the mesh"),
+    "duplicate of an inner vertex": Case(
+        {"in.msh": msh22(INNER, INNER_TRIS)}, "in.msh",
+        "triangle 4 (5, 6, 7) overlaps another part of the mesh",
+        arrays=(np.array(INNER), np.array(INNER_TRIS)), kind="duplicate-points"),
     "3D non-flat input": Case({"in.msh": msh22([(0, 0, 0), (1, 0, 0), (0, 1, 0.5)],
                                                [(0, 1, 2)])}, "in.msh",
                               "in.msh: the mesh is not flat: 1 of 3 points have z != 0",
@@ -301,3 +319,106 @@ def test_too_thin_for_float64_children_command_line(tmp_path):
                                     "thin for its distance from the origin")
     assert result.stderr.count("\n") == 1
     assert not out.exists() and _snapshot(tmp_path) == before
+
+
+# geometry decided by the refinement's own predicates: passes check => refines -------------
+
+def test_near_hanging_node_outside_is_a_warning_and_refines(tmp_path):
+    """Off the edge by 4e-18 on the far side: a crack, not an overlap; check passes with a
+    warning and the mesh refines (the same exact predicates decide both)."""
+    path = tmp_path / "crack.msh"
+    path.write_text(msh22(HANGING[:3] + [(1.0, -4e-18)] + HANGING[4:], HANGING_TRIS))
+    before = _snapshot(tmp_path)
+    checked = cli("check", path, "--json")
+    assert checked.returncode == 0, checked
+    report = json.loads(checked.stdout)
+    assert report["usable"] and "near-hanging-node" in {p["kind"] for p in report["problems"]}
+    out = tmp_path / "out.vtu"
+    refined = cli("refine", path, out, "-q")
+    assert refined.returncode == 0 and refined.stderr == "", refined
+    assert qdrefine.read(out).n_triangles == 7 * len(HANGING_TRIS)
+    out.unlink()
+    assert _snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("levels", [2, 3])
+def test_refusal_at_level_k_names_the_input_triangle(tmp_path, levels):
+    """A needle refined once fine but refused later: the message names the triangle of IN
+    (0-based row), not one of the intermediate mesh."""
+    h = {2: 1e-8, 3: 3e-8}[levels]
+    points = np.array([[0, 0], [1, 0], [0.5, 0.9], [0.5, -h]]) + 1e7
+    path = tmp_path / "needles.msh"
+    qdrefine.write(path, Mesh(points, [[0, 1, 2], [0, 3, 1]]))
+    qdrefine.refine(qdrefine.read(path), levels=levels - 1)  # the earlier levels pass
+    with pytest.raises(ValueError, match=rf"^triangle 1 \(0, 3, 1\) cannot be refined "
+                                         rf"{levels} levels: its descendant \d+"):
+        qdrefine.refine(qdrefine.read(path), levels=levels)
+    before = _snapshot(tmp_path)
+    result = cli("refine", path, tmp_path / "out.msh", "--levels", levels)
+    assert result.returncode == 1 and result.stderr.count("\n") == 1
+    assert result.stderr.startswith(f"qdrefine: error: {path}: triangle 1 (0, 3, 1) cannot be "
+                                    f"refined {levels} levels: its descendant ")
+    assert _snapshot(tmp_path) == before
+
+
+def test_json_outputs_are_valid_json(tmp_path):
+    """NaN and infinities become null; NumPy numbers become plain numbers."""
+    from qdrefine.cli._common import dumps
+
+    text = dumps({"a": float("nan"), "b": np.float64(np.inf), "c": np.int64(3),
+                  "d": (np.float32(0.5), [np.nan])})
+    assert json.loads(text) == {"a": None, "b": None, "c": 3, "d": [0.5, [None]]}
+    path = tmp_path / "in.msh"
+    qdrefine.write(path, examples.square(2))
+
+    def strict(word):
+        raise AssertionError(f"invalid JSON constant {word}")
+
+    for command in ("quality", "check", "info"):
+        result = cli(command, path, "--json")
+        assert result.returncode == 0, result
+        json.loads(result.stdout, parse_constant=strict)
+
+
+def test_import_from_a_read_only_install(tmp_path):
+    """Neither the install folder nor the user cache can hold numba's cache (here: both are
+    files, so this holds even for root): import works, and one line says where it went."""
+    import shutil
+
+    pkg = tmp_path / "site" / "qdrefine"
+    shutil.copytree(Path(qdrefine.__file__).parent, pkg,
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    for folder in [pkg, *[p for p in pkg.rglob("*") if p.is_dir()]]:
+        (folder / "__pycache__").write_text("not a folder")
+    (tmp_path / "cache").write_text("not a folder")
+    (tmp_path / "tmp").mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env |= {"PYTHONPATH": str(tmp_path / "site"), "XDG_CACHE_HOME": str(tmp_path / "cache"),
+            "HOME": str(tmp_path / "cache"), "TMPDIR": str(tmp_path / "tmp"),
+            "PYTHONDONTWRITEBYTECODE": "1"}
+    code = "import qdrefine, numba; print(qdrefine.__file__); print(numba.config.CACHE_DIR)"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            env=env, timeout=120)
+    assert result.returncode == 0, result.stderr
+    where, cache = result.stdout.split()
+    assert where.startswith(str(pkg)) and cache.startswith(str(tmp_path / "tmp"))
+    assert result.stderr.count("\n") == 1
+    assert result.stderr.startswith("qdrefine: note: ") and cache in result.stderr
+
+
+def test_validation_memory_is_checked(monkeypatch):
+    """Issue 17: the memory check covers validation too (before the edge sort, and before
+    the sweep with the number of boundary edges known)."""
+    from qdrefine.memory import validation_needed
+
+    mesh = examples.square(30)
+    p, t = np.array(mesh.points), np.array(mesh.triangles)
+    need = validation_needed(len(p), len(t), 0)
+    assert need > 16 * len(p) + 12 * len(t)
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, str(need // 2))
+    with pytest.raises(MemoryError, match=rf"^validating {len(t)} triangles needs about "):
+        Mesh(p, t)
+    with pytest.raises(MemoryError, match="validating"):
+        check.find(p, t)
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, str(need + 160 * 3 * len(t)))
+    assert Mesh(p, t).n_triangles == len(t)

@@ -23,6 +23,7 @@ from shapes import family_triangles, triangles
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from robustness import (  # noqa: E402
+    bad_input,
     checks,
     exact,
     exhibit,
@@ -308,7 +309,10 @@ def test_page_is_generated_from_the_committed_results():
     results = json.loads((root / "benchmarks/robustness/results.json").read_text())
     page = report.markdown(results, root / "docs/robustness.md", root / "docs/img/robustness",
                            root / "benchmarks/robustness/results.json")
-    assert page == (root / "docs/robustness.md").read_text()
+    hostile = json.loads((root / "benchmarks/robustness/bad_input.json").read_text())
+    # section 4 (python benchmarks/robustness/bad_input.py) from its own results
+    assert bad_input.splice(page, bad_input.section(hostile)) == (
+        root / "docs/robustness.md").read_text()
     assert (root / "docs/img/robustness/scipy_failures.png").stat().st_size > 10_000
 
 

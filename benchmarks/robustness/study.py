@@ -29,7 +29,15 @@ import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 import qdrefine  # noqa: E402
-from robustness import delaunay, exhibit, families, refinement, report, rows  # noqa: E402
+from robustness import (  # noqa: E402
+    bad_input,
+    delaunay,
+    exhibit,
+    families,
+    refinement,
+    report,
+    rows,
+)
 
 
 def machine() -> dict:
@@ -128,7 +136,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.page_only:
         results = json.loads(args.json.read_text())
-        args.out.write_text(report.markdown(results, args.out, args.img, args.json))
+        args.out.write_text(bad_input.keep(args.out, report.markdown(
+            results, args.out, args.img, args.json)))
         print(f"wrote {args.out} from {args.json}")
         return 0
     if args.quick:
@@ -145,7 +154,8 @@ def main(argv: list[str] | None = None) -> int:
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(report.to_json(results))
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(report.markdown(results, args.out, args.img, args.json))
+    args.out.write_text(bad_input.keep(args.out, report.markdown(
+        results, args.out, args.img, args.json)))
     print(f"wrote {args.out}, {args.json} ({results['meta']['seconds']:.0f} s)")
     return 0
 

@@ -4,7 +4,8 @@ The 7T-QD (Seven Triangle Quasi-Delaunay) partition, with 7T-LE, 7T-D and the cl
 four-triangle schemes for comparison. See :func:`refine` and :func:`partition`.
 """
 
-from . import marking
+from . import jit  # noqa: F401, I001  (first: where numba caches the kernels)
+from . import marking  # noqa: I001
 from .adaptive import refine_cycles
 from .io import read, write
 from .mesh import Mesh

@@ -24,14 +24,17 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
-from .kernels import number_edges
-from .predicates import COORDINATE_RANGE, SCRATCH, orient_sign, orient_signs
+from .jit import threads_for
+from .memory import check_needed, validation_needed
+from .numbering import EdgeBuckets, sort_edges
+from .predicates import COORDINATE_RANGE, orient_signs
+from .sweep import CROSSING, sweep, vertices_of
 
-__all__ = ["KINDS", "MIN_ANGLE", "Checked", "Problem", "duplicate_pairs", "edge_scan", "find",
-           "hanging_nodes", "index_dtype"]
+__all__ = ["KINDS", "MIN_ANGLE", "Checked", "Problem", "bucket_scan", "duplicate_pairs",
+           "edge_scan", "find", "hanging_nodes", "index_dtype", "near_duplicates"]
 
 #: Every kind of problem: its severity and what it means (the guide's table).
 KINDS: dict[str, tuple[str, str]] = {
@@ -53,10 +56,20 @@ KINDS: dict[str, tuple[str, str]] = {
                              "(they overlap)"),
     "hanging-node": ("error", "a vertex lies inside a boundary edge of another triangle "
                               "(non-conforming input)"),
+    "self-intersection": ("error", "two boundary edges cross, or run along each other with "
+                                   "their triangles on the same side (the mesh overlaps "
+                                   "itself; the first one found is reported)"),
+    "overlap": ("error", "part of the mesh lies on top of another part without any edges "
+                         "crossing (e.g. a separate piece inside a triangle)"),
     "cell-tags": ("error", "cell_tags is not one integer per triangle"),
     "edge-tags": ("error", "tagged edges are not (K, 2) vertex indices with one integer tag "
                            "each"),
     "edge-not-in-mesh": ("error", "a tagged edge is not an edge of any triangle"),
+    "near-hanging-node": ("warning", "a boundary vertex off another triangle's boundary edge "
+                                     "by less than 1e-12 times its length, outside it (a "
+                                     "crack; inside it would be an overlap)"),
+    "near-duplicate-points": ("warning", "two used points closer than 1e-12 times the "
+                                         "mesh's extent (not identical: that is an error)"),
     "unused-points": ("warning", "points used by no triangle (kept, carried through "
                                  "refinement)"),
     "pinched-vertex": ("warning", "a vertex where separate fans of triangles touch"),
@@ -67,7 +80,6 @@ KINDS: dict[str, tuple[str, str]] = {
 #: Default threshold (degrees) of the ``small-angle`` warning.
 MIN_ANGLE = 5.0
 
-_LEAF = 8  # points per leaf of the k-d tree of boundary vertices
 _CAP = 64  # instances kept per kind by the compiled searches (all are counted)
 
 
@@ -113,6 +125,7 @@ class Checked:
     edges: NDArray[np.integer] | None = None
     edge_tags: NDArray[np.int64] | None = None
     summary: dict[str, Any] = field(default_factory=dict)
+    buckets: EdgeBuckets | None = None  # the sorted edges of ``triangles``, for refinement
 
     @property
     def errors(self) -> list[Problem]:
@@ -209,29 +222,40 @@ def _run(found: _Found, out: Checked, points, triangles, cell_tags, edges, edge_
     t = out.triangles = np.array(t, dtype=index_dtype(n), order="C")
     geometry = geometry and _coordinates(found, p)
     if not geometry:
-        found.skip("orientation, duplicate points, hanging nodes and angles",
+        found.skip("orientation, duplicate points, overlaps, hanging nodes and angles",
                    "no valid flat coordinates")
-    oriented = geometry and _orientation(found, p, t, flip)
-    e, tri_edges, counts = number_edges(t, n)
-    scan = edge_scan(t, tri_edges, counts)
-    used = np.zeros(n, dtype=bool)
-    used[t.ravel()] = True
-    if not found.stop:
-        out.summary = _summary(t, used, e, scan[4])
-    _overused(found, t, tri_edges, counts, e, scan)
-    if oriented:
-        _folded(found, t, tri_edges, e, scan)
+    check_needed(validation_needed(n, len(t), 0), f"validating {len(t)} triangles")
+    oriented = flat = False
     if geometry:
-        _duplicates(found, p, used)
-        _hanging(found, p, scan[4], scan[5])
+        oriented, flat = _orientation(found, p, t, flip)
+    topo = _Topology(t, n, sort_edges(t, n))
+    used = None
+    if not found.stop:
+        used = _used(t, n)
+        out.summary = _summary(t, used, topo) | {"numbered_from": found.base}
+    manifold = _overused(found, topo)
+    if oriented:
+        oriented = _folded(found, topo) and manifold
+    if geometry:
+        # validation: duplicates among boundary vertices; one at an inner vertex is always
+        # an overlap too, which the sweep finds
+        _duplicates(found, p, vertices_of(topo.bedges, n) if used is None else
+                    np.flatnonzero(used))
+        if flat:
+            _boundary(found, p, topo, oriented)
+        else:
+            found.skip("overlaps and hanging nodes", "triangles with zero area")
     out.cell_tags = _cell_tags(found, cell_tags, len(t))
-    out.edges, out.edge_tags = _tagged_edges(found, edges, edge_tags, e, n, t.dtype)
+    out.edges, out.edge_tags = _tagged_edges(found, edges, edge_tags, topo, n, t.dtype)
     if warnings:
-        _unused(found, used)
+        _unused(found, _used(t, n) if used is None else used)
+        if geometry:
+            _near_duplicates(found, p, np.flatnonzero(_used(t, n) if used is None else used))
         if oriented:
-            _pinched(found, scan[4])
+            _pinched(found, topo.bedges)
         if geometry:
             _small_angles(found, p, t, min_angle)
+    out.buckets = topo.buckets
 
 
 # shapes, coordinates, indices ---------------------------------------------------------------
@@ -306,9 +330,9 @@ def _coordinates(found: _Found, p: NDArray) -> bool:
     return ok
 
 
-def _orientation(found: _Found, p: NDArray, t: NDArray, flip: bool) -> bool:
+def _orientation(found: _Found, p: NDArray, t: NDArray, flip: bool) -> tuple[bool, bool]:
     """Zero-area and clockwise triangles; flips the clockwise rows of ``t`` when ``flip``.
-    True when every triangle is (now) counter-clockwise."""
+    True when every triangle is (now) counter-clockwise, and True when none has zero area."""
     signs = orient_signs(p, t)
     zero = signs == 0
     if zero.any():
@@ -329,20 +353,102 @@ def _orientation(found: _Found, p: NDArray, t: NDArray, flip: bool) -> bool:
             found.add("clockwise", f"triangle {i + found.base} {tuple(found.ids(t[i]))} is "
                       "clockwise; triangles must be counter-clockwise with positive area", k,
                       **where)
-    return not zero.any() and (flip or not cw.any())
+    return not zero.any() and (flip or not cw.any()), not zero.any()
 
 
 # topology -------------------------------------------------------------------------------
 
 
-def _summary(t: NDArray, used: NDArray, e: NDArray, bedges: NDArray) -> dict[str, Any]:
+class _Topology:
+    """The sorted edges of ``t`` and one scan of them; the edge list and global ids are built
+    only when a message or the tagged edges need them."""
+
+    def __init__(self, t: NDArray, n: int, buckets: EdgeBuckets) -> None:
+        self.t, self.n, self.buckets = t, n, buckets
+        b = buckets
+        (self.n_over, self.first_over, self.n_fold, self.first_fold, self.bedges,
+         self.btris) = bucket_scan(t, b.local, b.starts, b.first, b.shift, b.mult)
+        self._edges: tuple[NDArray, NDArray] | None = None
+
+    @property
+    def edges(self) -> NDArray:
+        """``(E, 2)`` sorted edges."""
+        if self._edges is None:
+            self._edges = self.buckets.edges()
+        return self._edges[0]
+
+    def count(self, g: int) -> int:
+        if self._edges is None:
+            self._edges = self.buckets.edges()
+        return int(self._edges[1][g])
+
+    def triangles_of(self, g: int) -> list[int]:
+        return np.flatnonzero((self.buckets.global_ids(self.t) == g).any(axis=1)).tolist()
+
+
+@njit(parallel=True, cache=True)
+def _mark_used(t, used):
+    for k in prange(t.shape[0]):
+        for i in range(3):
+            used[t[k, i]] = True
+
+
+def _used(t: NDArray, n: int) -> NDArray[np.bool_]:
+    used = np.zeros(n, dtype=np.bool_)
+    with threads_for(t.shape[0]):
+        _mark_used(t, used)
+    return used
+
+
+def _summary(t: NDArray, used: NDArray, topo: _Topology) -> dict[str, Any]:
     n_used = int(np.count_nonzero(used))
-    return {"points": len(used), "used_points": n_used, "triangles": len(t), "edges": len(e),
-            "boundary_edges": len(bedges), "euler_characteristic": n_used - len(e) + len(t)}
+    n_edges = topo.buckets.n_edges
+    return {"points": len(used), "used_points": n_used, "triangles": len(t), "edges": n_edges,
+            "boundary_edges": len(topo.bedges),
+            "euler_characteristic": n_used - n_edges + len(t)}
 
 
-def _edge_triangles(tri_edges: NDArray, edge: int) -> list[int]:
-    return np.flatnonzero((tri_edges == edge).any(axis=1)).tolist()
+@njit(cache=True)
+def bucket_scan(t, local, starts, first, shift, mult):
+    """:func:`edge_scan` from the sorted edges of :func:`qdrefine.numbering.sort_edges`
+    (``local``, ``starts``, ``first``, ``shift`` and the multiplicities ``mult``)."""
+    ne = first[first.shape[0] - 1]
+    n_boundary = 0
+    for b in range(first.shape[0] - 1):
+        for u in range(first[b + 1] - first[b]):
+            if mult[starts[b] + u] == 1:
+                n_boundary += 1
+    bedges = np.empty((n_boundary, 2), dtype=np.int64)
+    btris = np.empty(n_boundary, dtype=np.int64)
+    forward = np.zeros(ne, dtype=np.int8)
+    j = 0
+    for k in range(t.shape[0]):
+        for i in range(3):
+            u, v = t[k, i], t[k, (i + 1) % 3]
+            b = min(u, v) >> shift
+            cnt = mult[starts[b] + local[k, i]]
+            if cnt == 1:
+                bedges[j, 0], bedges[j, 1] = u, v
+                btris[j] = k
+                j += 1
+            elif cnt == 2 and u < v:
+                g = first[b] + local[k, i]
+                forward[g] = min(forward[g] + 1, 3)
+    n_over = n_fold = 0
+    first_over = first_fold = -1
+    for b in range(first.shape[0] - 1):
+        for u in range(first[b + 1] - first[b]):
+            g = first[b] + u
+            cnt = mult[starts[b] + u]
+            if cnt > 2:
+                n_over += 1
+                if first_over < 0:
+                    first_over = g
+            elif cnt == 2 and forward[g] != 1:
+                n_fold += 1
+                if first_fold < 0:
+                    first_fold = g
+    return n_over, first_over, n_fold, first_fold, bedges, btris
 
 
 @njit(cache=True)
@@ -383,26 +489,34 @@ def edge_scan(t, tri_edges, counts):
     return n_over, first_over, n_fold, first_fold, bedges, btris
 
 
-def _overused(found: _Found, t, tri_edges, counts, e, scan) -> None:
-    n_over, g = scan[0], scan[1]
-    if n_over:
-        tris = [i + found.base for i in _edge_triangles(tri_edges, g)]
-        found.add("overused-edge", f"edge {tuple(found.ids(e[g]))} is shared by "
-                  f"{int(counts[g])} triangles {tuple(tris)}; at most two may share an edge",
-                  n_over, edge=found.ids(e[g]), triangles=tris)
+def _overused(found: _Found, topo: _Topology) -> bool:
+    """True when no edge is shared by more than two triangles."""
+    if not topo.n_over:
+        return True
+    g = topo.first_over
+    e = topo.edges
+    tris = [i + found.base for i in topo.triangles_of(g)]
+    found.add("overused-edge", f"edge {tuple(found.ids(e[g]))} is shared by "
+              f"{topo.count(g)} triangles {tuple(tris)}; at most two may share an edge",
+              topo.n_over, edge=found.ids(e[g]), triangles=tris)
+    return False
 
 
-def _folded(found: _Found, t, tri_edges, e, scan) -> None:
-    n_fold, g = scan[2], scan[3]
-    if n_fold:
-        tris = [i + found.base for i in _edge_triangles(tri_edges, g)]
-        found.add("folded-edge", f"triangles {tris[0]} and {tris[1]} lie on the same side of "
-                  f"their common edge {tuple(found.ids(e[g]))}: they overlap",
-                  n_fold, edge=found.ids(e[g]), triangles=tris)
+def _folded(found: _Found, topo: _Topology) -> bool:
+    """True when every interior edge is walked both ways."""
+    if not topo.n_fold:
+        return True
+    g = topo.first_fold
+    e = topo.edges
+    tris = [i + found.base for i in topo.triangles_of(g)]
+    found.add("folded-edge", f"triangles {tris[0]} and {tris[1]} lie on the same side of "
+              f"their common edge {tuple(found.ids(e[g]))}: they overlap",
+              topo.n_fold, edge=found.ids(e[g]), triangles=tris)
+    return False
 
 
-def _duplicates(found: _Found, p: NDArray, used: NDArray) -> None:
-    count, pairs = duplicate_pairs(p, np.flatnonzero(used), _CAP)
+def _duplicates(found: _Found, p: NDArray, ids: NDArray) -> None:
+    count, pairs = duplicate_pairs(p, ids, _CAP)
     if count:
         a, b = (int(v) for v in pairs[np.lexsort(pairs[:, ::-1].T)[0]])
         xy = tuple(p[a].tolist())
@@ -470,14 +584,140 @@ def duplicate_pairs(p, ids, cap):
     return count, pairs[:min(count, cap)]
 
 
-def _hanging(found: _Found, p: NDArray, bedges: NDArray, btris: NDArray) -> None:
-    count, hits = hanging_nodes(p, bedges)
+#: Two distinct used points closer than this times the mesh's extent are near duplicates.
+NEAR_DUPLICATE = 1e-12
+
+
+def _near_duplicates(found: _Found, p: NDArray, ids: NDArray) -> None:
+    q = p[ids]
+    if len(q) < 2:
+        return
+    extent = float(max(np.ptp(q[:, 0]), np.ptp(q[:, 1])))
+    if not extent > 0:
+        return
+    tol = NEAR_DUPLICATE * extent
+    count, a, b = near_duplicates(q, tol)
     if count:
-        v, row = (int(x) for x in hits[0])
-        edge, tri = found.ids(bedges[row]), int(btris[row]) + found.base
-        found.add("hanging-node", f"vertex {v + found.base} lies inside edge {tuple(edge)} of "
-                  f"triangle {tri} (a hanging node: the mesh is not conforming there)",
-                  count, vertex=v + found.base, edge=edge, triangle=tri)
+        a, b = int(ids[a]), int(ids[b])
+        d = float(np.hypot(*(p[a] - p[b])))
+        found.add("near-duplicate-points", f"points {a + found.base} and {b + found.base} are "
+                  f"only {d:.2g} apart ({d / extent:.2g} of the mesh's extent) at "
+                  f"{tuple(p[a].tolist())}", count, points=[a + found.base, b + found.base],
+                  distance=d)
+
+
+def near_duplicates(q: NDArray, tol: float) -> tuple[int, int, int]:
+    """Points of ``q (K, 2)`` with another point at a distance in ``(0, tol]``: their number
+    and one such pair ``(i, j)`` (rows of ``q``; ``-1`` when none).
+
+    The points are bucketed in square cells of side ``tol / sqrt(2)`` (sorted by cell): two
+    different points in one cell are near; a point alone in its cell (or with copies only)
+    looks at the 24 cells at most two away, each scanned by at most 24 such points, so the
+    work is ``O(K log K)`` for the sort and ``O(K)`` after it, on any input.
+    """
+    h = tol / np.sqrt(2.0)
+    cx = np.floor((q[:, 0] - q[:, 0].min()) / h).astype(np.int64)
+    cy = np.floor((q[:, 1] - q[:, 1].min()) / h).astype(np.int64)
+    order = np.lexsort((cy, cx))
+    return _near_scan(np.ascontiguousarray(q[order]), cx[order], cy[order], order, tol * tol)
+
+
+@njit(cache=True)
+def _near_scan(q, cx, cy, order, tol2):
+    k = q.shape[0]
+    near = np.zeros(k, dtype=np.bool_)
+    first_a = first_b = -1
+    s = 0
+    while s < k:  # cells: runs of equal (cx, cy)
+        e = s + 1
+        while e < k and cx[e] == cx[s] and cy[e] == cy[s]:
+            e += 1
+        mixed = -1
+        for i in range(s + 1, e):
+            if q[i, 0] != q[s, 0] or q[i, 1] != q[s, 1]:
+                mixed = i
+                break
+        if mixed >= 0:
+            for i in range(s, e):
+                near[i] = True
+            if first_a < 0:
+                first_a, first_b = order[s], order[mixed]
+        else:  # one position: look for a different point in the neighbouring cells
+            for dx in range(-2, 3):  # a cell's side is tol / sqrt(2): two cells away
+                x = cx[s] + dx
+                lo = np.searchsorted(cx, x)  # the row of cells with this x
+                hi = np.searchsorted(cx, x + 1)
+                a = lo + np.searchsorted(cy[lo:hi], cy[s] - 2)
+                b = lo + np.searchsorted(cy[lo:hi], cy[s] + 3)
+                for j in range(a, b):
+                    if s <= j < e:
+                        continue
+                    ddx, ddy = q[j, 0] - q[s, 0], q[j, 1] - q[s, 1]
+                    d2 = ddx * ddx + ddy * ddy
+                    if 0 < d2 <= tol2:
+                        for i in range(s, e):
+                            near[i] = True
+                        if first_a < 0:
+                            first_a, first_b = order[s], order[j]
+                        break
+        s = e
+    return int(near.sum()), first_a, first_b
+
+
+def _boundary(found: _Found, p: NDArray, topo: _Topology, covers: bool) -> None:
+    """Hanging nodes, crossing boundary edges and doubly covered area: one plane sweep
+    (:mod:`qdrefine.sweep`)."""
+    bedges, btris = topo.bedges, topo.btris
+    check_needed(validation_needed(len(p), len(topo.t), len(bedges)),
+                 f"validating {len(topo.t)} triangles ({len(bedges)} boundary edges)")
+    n_hang, hits, crossing, n_cov, first_cov, n_near, near, firsts, _ = sweep(
+        p, bedges, covers, found.stop, _CAP)
+    ids = found.ids
+    add = []  # (when found, how to report), reported in the sweep's order
+    if n_hang:
+        add.append((firsts[0], lambda: _hanging(found, hits, n_hang, bedges, btris)))
+    if crossing[0]:
+        add.append((firsts[2], lambda: _crossing(found, crossing, bedges, btris)))
+    if n_cov:
+        add.append((firsts[1], lambda: _covered(found, first_cov, n_cov, bedges, btris,
+                                                topo.t)))
+    for _, report in sorted(add, key=lambda x: x[0]):
+        report()
+    if n_near and not found.stop and not crossing[0] and not n_cov:
+        v, r, d = int(near[0]), int(near[1]), float(near[2])
+        tri = int(btris[r]) + found.base
+        found.add("near-hanging-node", f"vertex {v + found.base} is off edge "
+                  f"{tuple(ids(bedges[r]))} of triangle {tri} by only {d:.2g} times its length "
+                  "(outside it: a crack; refinement decides it exactly)", n_near,
+                  vertex=v + found.base, edge=ids(bedges[r]), triangle=tri, distance=d)
+
+
+def _crossing(found: _Found, crossing: NDArray, bedges: NDArray, btris: NDArray) -> None:
+    r, s = int(crossing[1]), int(crossing[2])
+    ta, tb = int(btris[r]) + found.base, int(btris[s]) + found.base
+    how = ("cross" if crossing[0] == CROSSING else
+           "run along each other with both triangles on the same side")
+    found.add("self-intersection", f"edge {tuple(found.ids(bedges[r]))} of triangle {ta} and "
+              f"edge {tuple(found.ids(bedges[s]))} of triangle {tb} {how}: the mesh overlaps "
+              "itself there", 1, triangles=[ta, tb],
+              edges=[found.ids(bedges[r]), found.ids(bedges[s])])
+
+
+def _covered(found: _Found, row: int, count: int, bedges: NDArray, btris: NDArray,
+             t: NDArray) -> None:
+    tri = int(btris[row]) + found.base
+    found.add("overlap", f"triangle {tri} {tuple(found.ids(t[btris[row]]))} overlaps another "
+              f"part of the mesh (the area along its edge {tuple(found.ids(bedges[row]))} is "
+              "covered twice)", count, triangle=tri, edge=found.ids(bedges[row]))
+
+
+def _hanging(found: _Found, hits: NDArray, count: int, bedges: NDArray, btris: NDArray
+             ) -> None:
+    v, row = (int(x) for x in hits[0])
+    edge, tri = found.ids(bedges[row]), int(btris[row]) + found.base
+    found.add("hanging-node", f"vertex {v + found.base} lies inside edge {tuple(edge)} of "
+              f"triangle {tri} (a hanging node: the mesh is not conforming there)",
+              count, vertex=v + found.base, edge=edge, triangle=tri)
 
 
 def hanging_nodes(points: NDArray, bedges: NDArray) -> tuple[int, NDArray[np.int64]]:
@@ -485,105 +725,13 @@ def hanging_nodes(points: NDArray, bedges: NDArray) -> tuple[int, NDArray[np.int
 
     Returns the number of (vertex, edge) pairs and up to 64 of them as rows ``(vertex, edge
     row)``. A hanging node of a mesh whose triangles do not overlap is always a boundary
-    vertex inside a boundary edge, so only those are tested: the boundary vertices go into a
-    k-d tree and each edge visits the cells its segment crosses, ``O(B log B)`` for short
-    edges and ``O(sqrt(B))`` cells at worst per edge.
+    vertex inside a boundary edge, so only those are tested, by the plane sweep of
+    :mod:`qdrefine.sweep` (``O(B log B)``). Where two edges cross, the sweep stops there:
+    the count covers the vertices before that crossing.
     """
-    bedges = np.ascontiguousarray(bedges, dtype=np.int64)
-    if len(bedges) == 0:
-        return 0, np.empty((0, 2), dtype=np.int64)
-    verts = np.unique(bedges)
-    xy = np.ascontiguousarray(points[verts], dtype=np.float64)
-    tree = _kdtree(xy)
-    return _stab(points, bedges, verts, xy, *tree, _CAP)
+    n_hang, hits = sweep(points, bedges, False, False, _CAP)[:2]
+    return int(n_hang), hits
 
-
-@njit(cache=True)
-def _kdtree(xy):
-    """A k-d tree: ``order`` of the points and per node its range, children and box."""
-    n = xy.shape[0]
-    order = np.arange(n)
-    size = 2 * n + 1
-    lo = np.zeros(size, dtype=np.int64)
-    hi = np.zeros(size, dtype=np.int64)
-    child = np.full(size, -1, dtype=np.int64)  # left child; right child is child + 1
-    box = np.zeros((size, 4))
-    stack = np.empty(size, dtype=np.int64)
-    lo[0], hi[0] = 0, n
-    nodes, top = 1, 1
-    stack[0] = 0
-    while top:
-        top -= 1
-        k = stack[top]
-        s, e = lo[k], hi[k]
-        idx = order[s:e]
-        box[k, 0], box[k, 1] = xy[idx, 0].min(), xy[idx, 0].max()
-        box[k, 2], box[k, 3] = xy[idx, 1].min(), xy[idx, 1].max()
-        if e - s <= _LEAF:
-            continue
-        dim = 0 if box[k, 1] - box[k, 0] >= box[k, 3] - box[k, 2] else 1
-        order[s:e] = idx[np.argsort(xy[idx, dim])]
-        mid = (s + e) // 2
-        child[k] = nodes
-        lo[nodes], hi[nodes], lo[nodes + 1], hi[nodes + 1] = s, mid, mid, e
-        stack[top], stack[top + 1] = nodes, nodes + 1
-        nodes += 2
-        top += 2
-    return order, lo, hi, child, box
-
-
-@njit(cache=True)
-def _misses(bx, ax, ay, dx, dy):
-    """True when the box lies strictly on one side of the line (conservative margin)."""
-    pos = neg = 0
-    for cx in (bx[0], bx[1]):
-        for cy in (bx[2], bx[3]):
-            u, v = cy - ay, cx - ax
-            s = dx * u - dy * v
-            margin = 1e-14 * (abs(dx * u) + abs(dy * v))
-            if s > margin:
-                pos += 1
-            elif s < -margin:
-                neg += 1
-    return pos == 4 or neg == 4
-
-
-@njit(cache=True)
-def _stab(points, bedges, verts, xy, order, lo, hi, child, box, cap):
-    hits = np.empty((cap, 2), dtype=np.int64)
-    count = 0
-    buf = np.empty(SCRATCH)
-    stack = np.empty(lo.shape[0], dtype=np.int64)
-    for r in range(bedges.shape[0]):
-        a, b = bedges[r, 0], bedges[r, 1]
-        ax, ay, bx, by = points[a, 0], points[a, 1], points[b, 0], points[b, 1]
-        x0, x1, y0, y1 = min(ax, bx), max(ax, bx), min(ay, by), max(ay, by)
-        top = 1
-        stack[0] = 0
-        while top:
-            top -= 1
-            k = stack[top]
-            if box[k, 1] < x0 or box[k, 0] > x1 or box[k, 3] < y0 or box[k, 2] > y1:
-                continue
-            if _misses(box[k], ax, ay, bx - ax, by - ay):
-                continue
-            if child[k] >= 0:
-                stack[top], stack[top + 1] = child[k], child[k] + 1
-                top += 2
-                continue
-            for q in range(lo[k], hi[k]):
-                i = order[q]
-                v = verts[i]
-                px, py = xy[i, 0], xy[i, 1]
-                if v == a or v == b or px < x0 or px > x1 or py < y0 or py > y1:
-                    continue
-                if (px == ax and py == ay) or (px == bx and py == by):
-                    continue  # a duplicate point, reported as such
-                if orient_sign(ax, ay, bx, by, px, py, buf) == 0:
-                    if count < cap:
-                        hits[count, 0], hits[count, 1] = v, r
-                    count += 1
-    return count, hits[:min(count, cap)]
 
 
 # tags -----------------------------------------------------------------------------------
@@ -611,7 +759,7 @@ def _cell_tags(found: _Found, cell_tags: ArrayLike | None, m: int) -> NDArray | 
     return ct
 
 
-def _tagged_edges(found: _Found, edges, edge_tags, mesh_edges, n: int,
+def _tagged_edges(found: _Found, edges, edge_tags, topo: _Topology, n: int,
                   dtype) -> tuple[NDArray | None, NDArray | None]:
     if edges is None and edge_tags is None:
         return None, None
@@ -638,7 +786,7 @@ def _tagged_edges(found: _Found, edges, edge_tags, mesh_edges, n: int,
         return None, None
     from .mesh import edge_ids
 
-    missing = edge_ids(mesh_edges, e, n) < 0
+    missing = edge_ids(topo.edges, e, n) < 0
     if missing.any():
         i = int(np.flatnonzero(missing)[0])
         found.add("edge-not-in-mesh", f"edge {i} {tuple(found.ids(e[i]))} is not an edge of "

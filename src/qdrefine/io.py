@@ -353,7 +353,7 @@ def _flat_points(raw: RawMesh, points: NDArray) -> None:
             i = int(np.flatnonzero(bad)[0])
             raw.flat = False
             raw.problem("not-flat", f"the mesh is not flat: {int(bad.sum())} of {len(points)} "
-                        f"points have z != 0 (first: point {i}, z = {z[i]!r}); qdrefine reads "
+                        f"points have z != 0 (first: point {i}, z = {float(z[i])}); qdrefine reads "
                         "2D meshes, or 3D ones with z = 0", int(bad.sum()), point=i)
         points = points[:, :2]
     raw.points = np.ascontiguousarray(points, dtype=np.float64)

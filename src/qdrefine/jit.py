@@ -1,10 +1,15 @@
-"""Low-level support shared by the compiled kernels: work sizes, the thread switch for small
-inputs, and software prefetch (an LLVM intrinsic numba does not expose)."""
+"""Low-level support shared by the compiled kernels: where their compiled code is cached,
+work sizes, the thread switch for small inputs, and software prefetch (an LLVM intrinsic
+numba does not expose)."""
 
 from __future__ import annotations
 
+import os
+import sys
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -14,8 +19,46 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "threads_for", "prefetch", "prefetch_write",
-           "unsigned"]
+__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "cache_directory", "threads_for", "prefetch",
+           "prefetch_write", "unsigned"]
+
+
+def _writable(folder: Path) -> bool:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError:
+        return False
+    return True
+
+
+def cache_directory() -> str | None:
+    """Make sure numba can cache the kernels (``cache=True``), also from a read-only install.
+
+    numba caches next to the sources (``__pycache__``), else in the user's cache directory
+    and fails at import when neither can be written. Then the cache goes to
+    ``$TMPDIR/qdrefine-numba-<uid>`` (``NUMBA_CACHE_DIR`` when set always wins) and one
+    line on stderr says so. Called once, when :mod:`qdrefine` is imported, before any kernel
+    is defined. Returns the directory chosen here, ``None`` when numba's own choice works.
+    """
+    if numba.config.CACHE_DIR:
+        return None
+    from numba.misc.appdirs import AppDirs
+
+    if _writable(Path(__file__).parent / "__pycache__") or _writable(
+            Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)):
+        return None
+    uid = os.getuid() if hasattr(os, "getuid") else "user"
+    folder = Path(tempfile.gettempdir()) / f"qdrefine-numba-{uid}"
+    if not _writable(folder):
+        folder = Path(tempfile.mkdtemp(prefix="qdrefine-numba-"))
+    numba.config.CACHE_DIR = str(folder)
+    print(f"qdrefine: note: the install folder and the user cache are read-only; compiled "
+          f"kernels are cached in {folder}", file=sys.stderr)
+    return str(folder)
+
+
+cache_directory()
 
 CHUNK = 4096  # triangles per parallel work item
 AHEAD = 8  # software prefetch distance (triangles or edges) for gathers of random rows

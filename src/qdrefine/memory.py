@@ -4,17 +4,60 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .mesh import Mesh, index_dtype
 from .schemes import Scheme, get_scheme
 
-__all__ = ["check_memory", "memory_needed", "available_memory", "MEMORY_LIMIT_VARIABLE"]
+if TYPE_CHECKING:
+    from .mesh import Mesh
+
+__all__ = ["check_memory", "memory_needed", "available_memory", "MEMORY_LIMIT_VARIABLE",
+           "validation_needed", "reading_needed", "check_needed"]
 
 #: Environment variable capping the memory qdrefine may plan to use (e.g. ``4GiB``).
 MEMORY_LIMIT_VARIABLE = "QDREFINE_MEMORY_LIMIT"
 _UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+def index_dtype(n_points: int) -> type[np.integer]:
+    """:func:`qdrefine.check.index_dtype` (which imports this module)."""
+    return np.int32 if n_points <= np.iinfo(np.int32).max else np.int64
+
+
+def validation_needed(n_points: int, n_triangles: int, n_boundary: int | None = None) -> int:
+    """Peak bytes of validating a mesh (:func:`qdrefine.check.find`), an estimate from above.
+
+    The normalized copies (``16`` bytes per point, ``3 x 4`` or ``3 x 8`` per triangle), the
+    orientation signs and the sorted edges (``1 + 30`` bytes per triangle, more with
+    ``int64`` indices), the boundary scan (``1`` byte per edge) and, with ``n_boundary``
+    boundary edges (default: as many as there are sides, a soup of separate triangles),
+    the plane sweep's tables (``160`` bytes per boundary edge).
+    """
+    n, m = int(n_points), int(n_triangles)
+    b = 3 * m if n_boundary is None else int(n_boundary)
+    idx = np.dtype(index_dtype(n)).itemsize
+    return 16 * n + n + (3 * idx + 1 + 3 * (2 + 2 * idx) + 3 * idx + 3) * m + 160 * b
+
+
+def reading_needed(n_points: int, n_triangles: int) -> int:
+    """Peak bytes of reading a mesh file that declares these counts and validating it: the
+    arrays as parsed (``24`` bytes per point with ``z``, ``24 + 8`` per triangle with its
+    tag, in ``int64``), then :func:`validation_needed` on top."""
+    n, m = int(n_points), int(n_triangles)
+    return 24 * n + 32 * m + validation_needed(n, m)
+
+
+def check_needed(need: int, what: str) -> None:
+    """Raise ``MemoryError`` (``"{what} needs about X GiB; Y GiB available"``) when ``need``
+    bytes exceed :func:`available_memory`; ``what`` says what, e.g. ``"reading F (10 M
+    triangles)"``."""
+    avail = available_memory()
+    if avail is not None and need > avail[0]:
+        source = f" ({avail[1]})" if avail[1] == MEMORY_LIMIT_VARIABLE else ""
+        raise MemoryError(f"{what} needs about {_gib(need)} GiB; {_gib(avail[0])} GiB "
+                          f"available{source}")
+
 
 def memory_needed(n_points: int, n_triangles: int, scheme: str | Scheme, levels: int,
                   tagged: bool = False) -> int:
@@ -88,11 +131,8 @@ def check_memory(mesh: Mesh, scheme: str | Scheme, levels: int) -> None:
         return
     need = memory_needed(mesh.n_points, mesh.n_triangles, scheme, levels,
                          mesh.cell_tags is not None)
-    if need > avail[0]:
-        source = f" ({avail[1]})" if avail[1] == MEMORY_LIMIT_VARIABLE else ""
-        raise MemoryError(f"refining {mesh.n_triangles} triangles {levels} level"
-                          f"{'s' if levels != 1 else ''} needs about {_gib(need)} GiB; "
-                          f"{_gib(avail[0])} GiB available{source}")
+    check_needed(need, f"refining {mesh.n_triangles} triangles {levels} level"
+                       f"{'s' if levels != 1 else ''}")
 
 
 def _gib(n: int) -> str:

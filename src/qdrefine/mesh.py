@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .check import find, index_dtype
+from .numbering import EdgeBuckets
 
 __all__ = ["Mesh", "edge_ids", "index_dtype"]
 
@@ -126,8 +127,9 @@ class Mesh:
     transitions: NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
-        fields = _validated(self.points, self.triangles, self.cell_tags, self.edges,
-                            self.edge_tags)
+        fields, buckets = _validated(self.points, self.triangles, self.cell_tags, self.edges,
+                                     self.edge_tags)
+        object.__setattr__(self, "_buckets", buckets)
         n, m = fields["points"].shape[0], fields["triangles"].shape[0]
         fields["point_data"] = _data(self.point_data, n, "point_data", "points")
         fields["cell_data"] = _data(self.cell_data, m, "cell_data", "triangles")
@@ -142,9 +144,13 @@ class Mesh:
                  point_data: Mapping[str, NDArray] | None = None,
                  cell_data: Mapping[str, NDArray] | None = None,
                  physical_names: Mapping[tuple[int, int], str] | None = None,
-                 transitions: NDArray | None = None) -> Mesh:
-        """A mesh from arrays already known to be valid (output of qdrefine's kernels)."""
+                 transitions: NDArray | None = None, buckets: EdgeBuckets | None = None
+                 ) -> Mesh:
+        """A mesh from arrays already known to be valid (output of qdrefine's kernels or of
+        :func:`qdrefine.check.find`, whose ``buckets`` the first refinement then reuses)."""
         mesh = object.__new__(cls)
+        if buckets is not None:
+            object.__setattr__(mesh, "_buckets", buckets)
         for name, value in (("points", points), ("triangles", triangles),
                             ("cell_tags", cell_tags), ("edges", edges),
                             ("edge_tags", edge_tags),
@@ -155,11 +161,21 @@ class Mesh:
             object.__setattr__(mesh, name, _readonly(value))
         return mesh
 
-    def __reduce__(self) -> tuple:
-        """Pickle support (the read-only mappings are stored as plain dicts)."""
-        return (Mesh._trusted, (self.points, self.triangles, self.cell_tags, self.edges,
-                                self.edge_tags, dict(self.point_data), dict(self.cell_data),
-                                dict(self.physical_names), self.transitions))
+    def _take_buckets(self) -> EdgeBuckets | None:
+        """The sorted edges that validation built (:func:`qdrefine.numbering.sort_edges` of
+        ``triangles``), handed once to the first uniform refinement, which then numbers no
+        edges itself; ``None`` afterwards and for meshes built by qdrefine's kernels. Until
+        then they hold about 30 bytes per triangle."""
+        return self.__dict__.pop("_buckets", None)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the kept edges; read-only mappings as plain dicts."""
+        return {k: dict(v) if isinstance(v, MappingProxyType) else v
+                for k, v in self.__dict__.items() if k != "_buckets"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        for k, v in state.items():
+            object.__setattr__(self, k, MappingProxyType(v) if isinstance(v, dict) else _readonly(v))
 
     @property
     def n_points(self) -> int:
@@ -180,12 +196,14 @@ class Mesh:
 
 
 def _validated(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | None,
-               edges: ArrayLike | None, edge_tags: ArrayLike | None) -> dict[str, NDArray | None]:
+               edges: ArrayLike | None, edge_tags: ArrayLike | None
+               ) -> tuple[dict[str, NDArray | None], EdgeBuckets | None]:
     found = find(points, triangles, cell_tags, edges, edge_tags, stop_at_error=True,
                  warnings=False)
     found.raise_first()
-    return {"points": found.points, "triangles": found.triangles, "cell_tags": found.cell_tags,
-            "edges": found.edges, "edge_tags": found.edge_tags}
+    return ({"points": found.points, "triangles": found.triangles,
+             "cell_tags": found.cell_tags, "edges": found.edges, "edge_tags": found.edge_tags},
+            found.buckets)
 
 
 def edge_ids(mesh_edges: NDArray, query: NDArray, n: int) -> NDArray[np.int64]:

@@ -14,7 +14,8 @@ from .numbering import EdgeBuckets, bucket_points, sort_edges
 from .predicates import orient_signs
 from .schemes import Scheme, get_scheme
 
-__all__ = ["refine", "refine_with_parents", "refine_arrays", "as_count", "split_tagged_edges"]
+__all__ = ["RefusedTriangle", "refine", "refine_with_parents", "refine_arrays", "as_count",
+           "split_tagged_edges"]
 
 
 def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
@@ -101,6 +102,8 @@ def _refine_uniform(mesh: Mesh, sch: Scheme, levels: int, strict: bool) -> Mesh:
     for level in range(1, levels + 1):
         try:
             out = _refine_once(out, sch, strict)
+        except RefusedTriangle as exc:  # named by the input triangle
+            raise exc.at_input(mesh, level, sch.n_children) from None
         except ValueError as exc:
             raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
     return out
@@ -118,14 +121,17 @@ def as_count(value: object, name: str) -> int:
 
 
 def refine_arrays(points: NDArray[np.float64], triangles: NDArray[np.integer], sch: Scheme,
-                  strict: bool = True) -> tuple[NDArray[np.float64], NDArray, EdgeBuckets]:
+                  strict: bool = True, buckets: EdgeBuckets | None = None
+                  ) -> tuple[NDArray[np.float64], NDArray, EdgeBuckets]:
     """One uniform level on plain arrays (counter-clockwise ``triangles (M, 3)`` with indices
     into ``points (N, 2)``): ``new_points (N + k E, 2)``, ``children (M T, 3)`` (``int32``
     while the points fit) and the sorted edges; see :func:`refine` for the numbering and
-    ``strict``."""
+    ``strict``. ``buckets``: :func:`~qdrefine.numbering.sort_edges` of ``triangles`` if
+    already known (validation builds them)."""
     k = sch.stencil.per_edge
     n = points.shape[0]
-    buckets = sort_edges(triangles, n)
+    if buckets is None:
+        buckets = sort_edges(triangles, n)
     n_new = n + k * buckets.n_edges
     new_points = np.empty((n_new, 2), dtype=np.float64)
     bucket_points(points, buckets, k, new_points)
@@ -140,7 +146,8 @@ def refine_arrays(points: NDArray[np.float64], triangles: NDArray[np.integer], s
 def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
     k = sch.stencil.per_edge
     n = mesh.n_points
-    points, triangles, buckets = refine_arrays(mesh.points, mesh.triangles, sch, strict)
+    points, triangles, buckets = refine_arrays(mesh.points, mesh.triangles, sch, strict,
+                                               mesh._take_buckets())
     cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
     new_edges, edge_tags = None, None
     if mesh.edges is not None:
@@ -200,13 +207,33 @@ def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: 
         edges = np.linalg.norm(corners - np.roll(corners, 1, axis=0), axis=1)
         height = abs(u[0] * w[1] - u[1] * w[0]) / edges.max()
         what = "zero area" if signs[bad[0]] == 0 else "clockwise orientation"
-        raise ValueError(
-            f"triangle {i} {tuple(int(v) for v in triangles[i])} is too thin for its distance "
-            f"from the origin (height {height:.3g}, coordinates up to "
-            f"{np.abs(corners).max():.3g}): "
+        raise RefusedTriangle(
+            i, tuple(int(v) for v in triangles[i]), "is too thin for its distance from the "
+            f"origin (height {height:.3g}, coordinates up to {np.abs(corners).max():.3g}): "
             f"its new points rounded to float64 give a child with {what} "
             f"({bad.size} such children in all); translate the mesh nearer the origin or "
             "refine less")
+
+
+class RefusedTriangle(ValueError):
+    """A triangle that refinement refuses: ``triangle`` (its row), ``vertices`` and
+    ``reason`` (the message is ``"triangle {triangle} {vertices} {reason}"``)."""
+
+    def __init__(self, triangle: int, vertices: tuple[int, ...], reason: str) -> None:
+        self.triangle, self.vertices, self.reason = triangle, vertices, reason
+        super().__init__(f"triangle {triangle} {vertices} {reason}")
+
+    def at_input(self, mesh: Mesh, level: int, n_children: int) -> RefusedTriangle:
+        """The refusal at ``level`` (counted from 1) of refining ``mesh`` uniformly, told of
+        ``mesh``'s triangle whose descendant was refused (children of row ``t`` are rows
+        ``t T .. t T + T - 1``)."""
+        if level <= 1:
+            return self
+        t = self.triangle // n_children ** (level - 1)
+        return RefusedTriangle(t, tuple(int(v) for v in mesh.triangles[t]),
+                               f"cannot be refined {level} levels: its descendant "
+                               f"{self.triangle} {self.vertices} of level {level - 1} "
+                               f"{self.reason}")
 
 
 def split_tagged_edges(tagged: NDArray, tags: NDArray, edges: NDArray, n: int, k: int,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import sys
 import warnings
@@ -129,8 +130,24 @@ def write_text(path: str | Path, text: str) -> None:
         Path(tmp).write_text(text, encoding="utf-8")
 
 
+def plain(data: Any) -> Any:
+    """``data`` with NumPy scalars and arrays as Python numbers and lists, tuples as lists
+    and NaN or infinite floats as ``None`` (JSON's ``null``): what :func:`dumps` writes."""
+    if isinstance(data, dict):
+        return {str(k): plain(v) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [plain(v) for v in data]
+    if hasattr(data, "tolist"):  # NumPy scalars and arrays
+        return plain(data.tolist())
+    if isinstance(data, float) and not math.isfinite(data):
+        return None
+    return data
+
+
 def dumps(data: Any) -> str:
-    return json.dumps(data, indent=2)
+    """Valid JSON always (``null`` for undefined values such as the angles of an empty
+    selection)."""
+    return json.dumps(plain(data), indent=2, allow_nan=False)
 
 
 class Progress:

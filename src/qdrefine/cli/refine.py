@@ -15,7 +15,7 @@ from ..io import read, write
 from ..marking import mark_box, mark_file, mark_tag
 from ..memory import check_memory
 from ..mesh import Mesh
-from ..refine import refine
+from ..refine import RefusedTriangle, refine
 from ..schemes import get_scheme, scheme_names
 from . import _common
 
@@ -117,10 +117,13 @@ def _uniform(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress
              ) -> tuple[Mesh, str]:
     levels = 1 if args.levels is None else args.levels
     check_memory(mesh, args.scheme, levels)  # all levels, before the first one allocates
-    n0 = mesh.n_triangles
+    n0, first = mesh.n_triangles, mesh
     for level in range(1, levels + 1):
         progress.step(f"refining, level {level}/{levels}")
-        mesh = refine(mesh, args.scheme)
+        try:
+            mesh = refine(mesh, args.scheme)
+        except RefusedTriangle as exc:  # named by the triangle of IN (0-based row)
+            raise exc.at_input(first, level, get_scheme(args.scheme).n_children) from None
     return mesh, (f"{n0} triangles refined by {args.scheme}, {levels} level"
                   f"{'s' if levels != 1 else ''}")
 
