@@ -175,7 +175,8 @@ class Mesh:
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         for k, v in state.items():
-            object.__setattr__(self, k, MappingProxyType(v) if isinstance(v, dict) else _readonly(v))
+            value = MappingProxyType(v) if isinstance(v, dict) else _readonly(v)
+            object.__setattr__(self, k, value)
 
     @property
     def n_points(self) -> int:
