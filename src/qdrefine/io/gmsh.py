@@ -295,8 +295,7 @@ def _nodes(f: _File, c: _Content, start: int) -> int:
             raise f.error(end, f"$Nodes holds {len(v) - i} numbers more than announced")
     c.node_tags = _tag_array(f, np.concatenate(tags) if tags else np.empty(0), start, "node")
     c.points = np.concatenate(coords) if coords else np.empty((0, 3))
-    if len(c.points) != n_nodes:
-        raise f.error(start, f"$Nodes announces {n_nodes} nodes, holds {len(c.points)}")
+    del n_nodes  # Gmsh itself writes totals that differ from the blocks: the blocks count
     return end
 
 
@@ -570,7 +569,7 @@ def _field(c: _Content, where: str, name: str, values: NDArray, rows: NDArray, s
             shape, dtype = tuple(int(s) for s in spec["shape"]), np.dtype(spec["dtype"])
             width = int(np.prod(shape))
             out = out[:, :width]
-            if dtype.kind in "iub" and np.isfinite(out).all():
+            if dtype.kind == "f" or (dtype.kind in "iub" and np.isfinite(out).all()):
                 out = out.astype(dtype)
             return out.reshape((size, *shape))
         except (KeyError, TypeError, ValueError):
@@ -637,7 +636,7 @@ def _write41(out, mesh, binary: bool) -> None:
         out.write(np.array([0, len(curves), len(surfaces), 0], np.uint64).tobytes())
         for groups in (curves, surfaces):
             for i, (tag, _) in enumerate(groups):
-                phys = [tag] if tag != 0 else []
+                phys = [tag]
                 out.write(np.array([i + 1], np.int32).tobytes() + np.array(box).tobytes()
                           + np.array([len(phys)], np.uint64).tobytes()
                           + np.array(phys, np.int32).tobytes()
@@ -648,7 +647,7 @@ def _write41(out, mesh, binary: bool) -> None:
         bbox = " ".join(repr(float(x)) for x in box)
         for groups in (curves, surfaces):
             for i, (tag, _) in enumerate(groups):
-                phys = f"1 {tag}" if tag != 0 else "0"
+                phys = f"1 {tag}"
                 out.write(f"{i + 1} {bbox} {phys} 0\n".encode())
     out.write(b"$EndEntities\n$Nodes\n")
     xyz = np.zeros((n, 3))
@@ -738,16 +737,19 @@ def _data_sections(path: Path, mesh, point_data: dict, cell_data: dict, binary: 
                 raise ValueError(f"{path}: {where} data name {name!r} contains a quote or a "
                                  "line break, which MSH files cannot hold")
             flat = a.reshape(len(a), -1).astype(np.float64)
+            if where == "cell" and mesh.edges is not None and len(mesh.edges):
+                # values for the line elements too (0), as meshio expects one per element
+                flat = np.concatenate([flat, np.zeros((len(mesh.edges), flat.shape[1]))])
             width = flat.shape[1]
             comps = 1 if width == 1 else (3 if width <= 3 else 9 if width <= 9 else width)
             if comps != width:
-                flat = np.column_stack([flat, np.zeros((len(a), comps - width))])
+                flat = np.column_stack([flat, np.zeros((len(flat), comps - width))])
             spec.setdefault(where, {})[name] = {"shape": list(a.shape[1:]),
                                                 "dtype": a.dtype.str}
-            head = f'${kind}\n1\n"{name}"\n1\n0\n3\n0\n{comps}\n{len(a)}\n'.encode()
-            ids = np.arange(first, first + len(a))
+            head = f'${kind}\n1\n"{name}"\n1\n0\n3\n0\n{comps}\n{len(flat)}\n'.encode()
+            ids = np.arange(first, first + len(flat))
             if binary:
-                rec = np.empty(len(a), dtype=[("tag", np.int32), ("v", np.float64, (comps,))])
+                rec = np.empty(len(flat), dtype=[("tag", np.int32), ("v", np.float64, (comps,))])
                 rec["tag"], rec["v"] = ids, flat
                 body = rec.tobytes() + b"\n"
             else:

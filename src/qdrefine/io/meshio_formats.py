@@ -149,6 +149,8 @@ def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: b
         point_data: dict[str, NDArray] = {}
         if data:
             point_data, tri_data = mesh_data(mesh)
+            point_data = {k: _plain(v) for k, v in point_data.items()}
+            tri_data = {k: _plain(v) for k, v in tri_data.items()}
             for name, value in tri_data.items():
                 value = np.asarray(value)
                 pad = [np.zeros((k, *value.shape[1:]), value.dtype)] if k else []
@@ -156,3 +158,9 @@ def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: b
         m = meshio.Mesh(points, cells, point_data=point_data, cell_data=cell_data)
     with atomic_path(path) as tmp, quiet_meshio(path):
         meshio.write(tmp, m, file_format=meshio_name, **kwargs)
+
+
+def _plain(value) -> NDArray:
+    """Data as meshio's writers take it: booleans as ``uint8``."""
+    a = np.asarray(value)
+    return a.astype(np.uint8) if a.dtype == bool else a

@@ -76,6 +76,8 @@ def _read(path: Path, data: bytes) -> RawMesh:
         raise ValueError("byte %d: no '_' opening the appended data" % start)
     if b'encoding="raw"' not in data[start:tag_end]:
         raise _Fallback
+    if b"</VTKFile>" not in data[-64:]:
+        raise ValueError(f"byte {len(data)}: the file ends early (no </VTKFile>)")
     root = ET.fromstring(data[:start] + b"</VTKFile>")
     if root.tag != "VTKFile" or root.get("type") != "UnstructuredGrid":
         raise ValueError("not a VTKFile of type UnstructuredGrid")
@@ -261,11 +263,10 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False) -> N
         if a.dtype.kind not in "iuf":
             raise ValueError(f"{path}: data {name!r} of dtype {a.dtype} cannot be written")
         a = np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<"))
-        comps = int(np.prod(a.shape[1:])) if a.ndim > 1 else 1
+        comps = f' NumberOfComponents="{int(np.prod(a.shape[1:]))}"' if a.ndim > 1 else ""
         body = _encode(a, compress)
         text = (f'<DataArray type="{_NAMES[a.dtype.newbyteorder("=")]}" '
-                f'Name="{_attr(name)}" NumberOfComponents="{comps}" format="appended" '
-                f'offset="{offset[0]}"/>\n')
+                f'Name="{_attr(name)}"{comps} format="appended" offset="{offset[0]}"/>\n')
         blocks.extend(body)
         offset[0] += sum(memoryview(b).nbytes for b in body)
         return text
