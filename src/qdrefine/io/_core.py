@@ -153,7 +153,8 @@ def from_blocks(path: Path, points: NDArray, blocks: list[tuple[str, NDArray]],
     if sum(len(t) for t in tris) == 0:
         raw.problem("no-triangles", "holds no triangles", 0)
         return raw
-    raw.triangles = np.concatenate(tris).astype(np.int64, copy=False)
+    raw.triangles = (tris[0] if len(tris) == 1 else np.concatenate(tris)).astype(
+        np.int64, copy=False)
     if all(t is not None for t in tri_tags):
         raw.cell_tags = integer_tags(raw, np.concatenate(tri_tags), "cell")
         if raw.cell_tags is not None and not raw.cell_tags.any():

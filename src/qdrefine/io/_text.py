@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["format_floats", "format_ints", "parse", "BadNumber"]
+__all__ = ["format_floats", "format_ints", "parse", "parse_table", "BadNumber"]
 
 #: Rows formatted per batch by :func:`format_floats` (bounds the memory of the Python objects).
 BATCH = 1 << 16
@@ -46,6 +46,47 @@ def parse(text: bytes, dtype: type, what: str = "a number") -> NDArray:
             if convert is int and abs(value) >= 2**63:
                 raise BadNumber(number, word.decode(), "an integer below 2**63")
     raise BadNumber(1, text[:40].decode("utf-8", "replace"), what)  # not reached in practice
+
+
+def parse_table(text: bytes, columns: int, what: str = "a number", dtype: type = np.float64
+                ) -> NDArray:
+    """The lines of ``text``, each ``columns`` whitespace-separated numbers, as a
+    ``(lines, columns) float64`` array, correctly rounded. pandas' C reader does it (about
+    7x ``np.fromstring``) with CPython's own string-to-double; without pandas, or when a
+    line does not fit, :func:`parse` does (and names the line of a bad number)."""
+    if len(text) > 1 << 16:
+        table = _pandas_table(text, columns, dtype)
+        if table is not None:
+            return table
+    values = parse(text, dtype, what)
+    if len(values) % columns:
+        raise BadNumber(text.count(b"\n") + 1, "", f"{columns} numbers per line")
+    return values.reshape(-1, columns)
+
+
+def _pandas_table(text: bytes, columns: int, dtype: type) -> NDArray | None:
+    try:
+        import pandas as pd
+    except ImportError:
+        return None
+    import io
+    import warnings
+
+    options = {"sep": r"\s+", "header": None, "dtype": dtype, "engine": "c",
+               "na_filter": False}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:  # CPython's correctly rounded conversion
+                frame = pd.read_csv(io.BytesIO(text), float_precision="round_trip", **options)
+            except TypeError:  # a pandas without the option: its default is exact
+                frame = pd.read_csv(io.BytesIO(text), **options)
+    except (ValueError, OverflowError, pd.errors.ParserError, pd.errors.EmptyDataError):
+        return None
+    table = frame.to_numpy(dtype=dtype)
+    if table.ndim != 2 or table.shape[1] != columns:
+        return None
+    return table
 
 
 @njit(cache=True)

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from ._core import RawMesh, atomic_path, check_readable, from_blocks, mesh_data, read_bytes, \
     split_data
-from ._text import BadNumber, format_floats, format_ints, parse
+from ._text import BadNumber, format_floats, format_ints, parse, parse_table
 
 __all__ = ["read", "write", "VERSIONS", "GmshError"]
 
@@ -273,6 +273,10 @@ def _nodes(f: _File, c: _Content, start: int) -> int:
         end = pos
     else:
         end = f.end_of("Nodes", start)
+        fast = _nodes41_by_lines(f, start, end)
+        if fast is not None:
+            c.node_tags, c.points = fast
+            return end
         v = f.numbers(start, end, np.float64, "a number")
         if len(v) < 4:
             raise f.error(start, "$Nodes ends early")
@@ -299,6 +303,76 @@ def _nodes(f: _File, c: _Content, start: int) -> int:
     return end
 
 
+def _line_index(data: bytes, start: int, end: int):
+    """Offsets of the lines of ``data[start:end]`` and ``lines(first, count) -> bytes``."""
+    newlines = np.flatnonzero(np.frombuffer(data, np.uint8, end - start, start) == 10) + start
+    line_start = np.concatenate([[start], newlines + 1])
+
+    def lines(first: int, count: int) -> bytes:
+        if first + count >= len(line_start):
+            raise IndexError
+        return data[line_start[first]:line_start[first + count]]
+
+    return line_start, lines
+
+
+def _elements41_by_lines(f: _File, c: _Content, start: int, end: int) -> bool:
+    """Text ``$Elements`` of MSH 4.1 with one element per line: each block parsed as a table
+    (the fast path). False (and nothing stored) when the layout differs."""
+    line_start, lines = _line_index(f.data, start, end)
+    blocks = []
+    try:
+        n_blocks = int(lines(0, 1).split()[0])
+        at = 1
+        for _ in range(n_blocks):
+            dim, ent, typ, n = (int(x) for x in lines(at, 1).split())
+            if typ not in ELEMENTS:
+                return False
+            npe = ELEMENTS[typ][1]
+            rows = parse_table(lines(at + 1, n), 1 + npe, dtype=np.int64) if n else \
+                np.empty((0, 1 + npe), np.int64)
+            if rows.shape != (n, 1 + npe):
+                return False
+            blocks.append((typ, c.entities.get((dim, ent), 0), dim, rows[:, 0], rows[:, 1:]))
+            at += 1 + n
+        if f.data[line_start[at]:end].strip():
+            return False
+    except (IndexError, ValueError):
+        return False
+    c.blocks.extend(blocks)
+    return True
+
+
+def _nodes41_by_lines(f: _File, start: int, end: int
+                      ) -> tuple[NDArray[np.int64], NDArray[np.float64]] | None:
+    """Text ``$Nodes`` of MSH 4.1 laid out one item per line (as Gmsh writes it): each
+    block's tags parsed as integers and its coordinates as a table (the fast path). ``None``
+    when the layout differs; the general parser then reads (and names any bad line)."""
+    data = f.data
+    line_start, lines = _line_index(data, start, end)
+    try:
+        head = lines(0, 1).split()
+        n_blocks = int(head[0])
+        at = 1
+        tags, coords = [], []
+        for _ in range(n_blocks):
+            dim, _, parametric, n = (int(x) for x in lines(at, 1).split())
+            width = 3 + (dim if parametric else 0)
+            t = parse(lines(at + 1, n), np.int64) if n else np.empty(0, np.int64)
+            x = parse_table(lines(at + 1 + n, n), width) if n else np.empty((0, width))
+            if len(t) != n or x.shape != (n, width):
+                return None
+            tags.append(t)
+            coords.append(x[:, :3])
+            at += 1 + 2 * n
+        if data[line_start[at]:end].strip():
+            return None
+    except (IndexError, ValueError):
+        return None
+    return (np.concatenate(tags) if tags else np.empty(0, np.int64),
+            np.concatenate(coords) if coords else np.empty((0, 3)))
+
+
 def _tag_array(f: _File, tags: NDArray, start: int, what: str) -> NDArray[np.int64]:
     if tags.dtype.kind == "f":
         if len(tags) and not ((tags == np.round(tags)) & (np.abs(tags) < _EXACT_INT)).all():
@@ -318,11 +392,13 @@ def _nodes22(f: _File, c: _Content, start: int) -> int:
         c.points = np.array(nodes["xyz"])
         return end
     end = f.end_of("Nodes", pos)
-    v = f.numbers(pos, end, np.float64, "a number")
-    if len(v) != 4 * n:
+    try:
+        v = parse_table(f.data[pos:end], 4)
+    except BadNumber:
+        v = f.numbers(pos, end, np.float64, "a number").reshape(-1, 1)  # names the line
+    if v.shape != (n, 4):
         raise f.error(start, f"$Nodes announces {n} nodes (4 numbers each), holds "
-                             f"{len(v)} numbers")
-    v = v.reshape(n, 4)
+                             f"{v.size} numbers")
     c.node_tags = _tag_array(f, v[:, 0], start, "node")
     c.points = np.ascontiguousarray(v[:, 1:])
     return end
@@ -339,11 +415,13 @@ def _elements(f: _File, c: _Content, start: int) -> int:
             kind = _kind(f, int(b[2]), pos)
             n, npe = int(count[0]), ELEMENTS[kind][1]
             v, pos = f.take(pos, np.uint64, n * (1 + npe), "$Elements")
-            v = v.reshape(n, 1 + npe).astype(np.int64)
+            v = v.reshape(n, 1 + npe).view(np.int64)  # tags < 2**63
             c.blocks.append((kind, c.entities.get((int(b[0]), int(b[1])), 0), int(b[0]),
                              v[:, 0], v[:, 1:]))
         return pos
     end = f.end_of("Elements", start)
+    if _elements41_by_lines(f, c, start, end):
+        return end
     v = f.numbers(start, end, np.int64, "an integer")
     if len(v) < 4:
         raise f.error(start, "$Elements ends early")
@@ -398,10 +476,13 @@ def _elements22(f: _File, c: _Content, start: int) -> int:
     b = np.frombuffer(section, dtype=np.uint8)
     space = (b == 32) | (b == 9) | (b == 13) | (b == 10)
     first = ~space & np.concatenate([[True], space[:-1]])
-    line = np.cumsum(b == 10)[first]  # line (0-based, from pos) of each number
+    # line (0-based, from pos) of each number
+    line = np.searchsorted(np.flatnonzero(b == 10), np.flatnonzero(first))
     if len(line) != len(v):
         raise f.error(pos, "unreadable numbers in $Elements")
-    lines, counts = np.unique(line, return_counts=True)
+    cut = np.flatnonzero(np.diff(line)) + 1  # ``line`` is sorted: runs are lines
+    lines = line[np.concatenate([[0], cut])] if len(line) else line
+    counts = np.diff(np.concatenate([[0], cut, [len(line)]])) if len(line) else line
     if len(lines) != total:
         raise f.error(start, f"$Elements announces {total} elements, holds {len(lines)} lines")
     if total == 0:
@@ -493,30 +574,48 @@ _HANDLERS = {
 }
 
 
-def _rows_of(tags: NDArray[np.int64], query: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Row of each ``query`` tag in ``tags`` (-1 where absent); ``tags`` unique."""
+def _is_range(tags: NDArray[np.int64]) -> bool:
+    """Whether ``tags`` is ``1, 2, ..., len(tags)`` (what Gmsh and qdrefine write)."""
     n = len(tags)
-    if n and tags[0] == 1 and tags[-1] == n and (np.diff(tags) == 1).all():
-        rows = query - 1
-        rows[(query < 1) | (query > n)] = -1
+    return n == 0 or (tags[0] == 1 and tags[-1] == n and bool((np.diff(tags) == 1).all()))
+
+
+def _first_duplicate(tags: NDArray[np.int64]) -> int | None:
+    if _is_range(tags):
+        return None
+    s = np.sort(tags)
+    same = np.flatnonzero(s[1:] == s[:-1])
+    return int(s[same[0]]) if len(same) else None
+
+
+def _rows_of(tags: NDArray[np.int64], query: NDArray[np.int64], contiguous: bool | None = None
+             ) -> NDArray[np.int64]:
+    """Row of each ``query`` tag in ``tags`` (-1 where absent); ``tags`` unique. ``query``
+    keeps its shape."""
+    n = len(tags)
+    if n == 0:
+        return np.full(query.shape, -1, np.int64)
+    if contiguous if contiguous is not None else _is_range(tags):
+        rows = np.subtract(query, 1, dtype=np.int64)
+        if len(rows) and (rows.min() < 0 or rows.max() >= n):
+            rows[(rows < 0) | (rows >= n)] = -1
         return rows
     order = np.argsort(tags, kind="stable")
     sorted_tags = tags[order]
-    pos = np.minimum(np.searchsorted(sorted_tags, query), max(n - 1, 0))
-    if n == 0:
-        return np.full(len(query), -1, np.int64)
+    pos = np.minimum(np.searchsorted(sorted_tags, query), n - 1)
     found = sorted_tags[pos] == query
     return np.where(found, order[pos], -1)
 
 
 def _assemble(f: _File, c: _Content) -> RawMesh:
     tags = c.node_tags
-    if len(np.unique(tags)) != len(tags):
-        u, counts = np.unique(tags, return_counts=True)
-        raise GmshError(f"node tag {int(u[counts > 1][0])} is given twice in $Nodes")
+    twice = _first_duplicate(tags)
+    if twice is not None:
+        raise GmshError(f"node tag {twice} is given twice in $Nodes")
+    contiguous = _is_range(tags)
     blocks, block_tags, element_ids = [], [], []
     for kind, phys, _dim, ids, nodes in c.blocks:
-        rows = _rows_of(tags, nodes.ravel()).reshape(nodes.shape)
+        rows = _rows_of(tags, nodes, contiguous)
         if (rows < 0).any():
             k = np.argwhere(rows < 0)[0]
             raise GmshError(f"element {int(ids[k[0]])} uses node {int(nodes[k[0], k[1]])}, "
@@ -543,12 +642,13 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
             tri_ids = ids
     raw = from_blocks(f.path, c.points, merged, merged_tags)
     raw.physical_names = dict(c.names)
-    point_data = {name: _field(c, "point", name, v, _rows_of(tags, t), len(tags))
+    point_data = {name: _field(c, "point", name, v, _rows_of(tags, t, contiguous), len(tags))
                   for name, (t, v) in c.node_data.items()}
     cell_data = {}
     if len(tri_ids) and c.element_data:
-        if len(np.unique(tri_ids)) != len(tri_ids):
-            raise GmshError("two triangles have the same element tag")
+        if _first_duplicate(tri_ids) is not None:
+            raise GmshError(f"element tag {_first_duplicate(tri_ids)} is given to two "
+                            "triangles")
         for name, (t, v) in c.element_data.items():
             cell_data[name] = _field(c, "cell", name, v, _rows_of(tri_ids, t), len(tri_ids))
     split_data(raw, point_data, cell_data)
