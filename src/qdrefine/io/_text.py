@@ -1,17 +1,21 @@
 """Fast text numbers for the ASCII formats: whole sections parsed at once, rows formatted at
 once, and the place (line) of the first bad number when parsing fails.
 
-Floats are written with 17 significant digits (``%.17g``), which read back bit for bit;
-integers by a compiled formatter (about 10 ns each, against 80 ns for Python's ``%d``).
+Floats are written in a form that reads back bit for bit: pyarrow's shortest exact
+representation where pyarrow is installed, else 17 significant digits (``%.17g``); integers
+by a compiled formatter (about 10 ns each, against 80 ns for Python's ``%d``). Text is parsed
+by pandas' C reader (CPython's correctly rounded conversion) where pandas is installed.
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterator
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["format_floats", "format_ints", "parse", "parse_table", "BadNumber"]
+__all__ = ["format_floats", "format_ints", "int_lines", "parse", "parse_table", "BadNumber"]
 
 #: Rows formatted per batch by :func:`format_floats` (bounds the memory of the Python objects).
 BATCH = 1 << 16
@@ -138,6 +142,12 @@ def _format_ints(a: NDArray[np.int64]) -> NDArray[np.uint8]:
     return out
 
 
+def int_lines(rows: NDArray) -> Iterator[NDArray[np.uint8]]:
+    """:func:`format_ints` in pieces of :data:`ARROW_BATCH` rows (bounded memory)."""
+    for start in range(0, max(len(rows), 1), ARROW_BATCH):
+        yield format_ints(rows[start:start + ARROW_BATCH])
+
+
 def format_ints(rows: NDArray) -> NDArray[np.uint8]:
     """``rows (n, k)`` integers as text, one line per row, numbers separated by spaces (a
     buffer to pass to ``file.write``)."""
@@ -149,17 +159,54 @@ def format_ints(rows: NDArray) -> NDArray[np.uint8]:
     return _format_ints(a)
 
 
-def format_floats(rows: NDArray, suffix: str = "", first: str = "%.17g") -> bytes:
-    """``rows (n, k)`` floats as text with 17 significant digits (exact round trip), one line
-    per row, ``suffix`` appended to each line (e.g. ``" 0"`` for a z coordinate); ``first``
-    is the format of the first column (``"%d"`` for an id)."""
+def format_floats(rows: NDArray, suffix: str = "", first: str = "%.17g") -> Iterator[bytes]:
+    """``rows (n, k)`` floats as text that reads back bit for bit, one line per row,
+    ``suffix`` appended to each line (e.g. ``" 0"`` for a z coordinate); ``first="%d"``
+    writes the first column as integers (an id). Yields the text in pieces of
+    :data:`BATCH` rows.
+
+    With pyarrow, numbers are written in their shortest exact form by its compiled
+    formatter (about 5x Python's); otherwise Python writes them with 17 significant digits.
+    """
     a = np.asarray(rows, dtype=np.float64)
     if a.ndim == 1:
         a = a[:, None]
     n, k = a.shape
-    line = " ".join([first] + ["%.17g"] * (k - 1)) + suffix + "\n"
-    parts = []
-    for start in range(0, n, BATCH):
-        block = a[start:start + BATCH]
-        parts.append(((line * len(block)) % tuple(block.ravel().tolist())).encode())
-    return b"".join(parts)
+    arrow = _arrow()
+    step = ARROW_BATCH if arrow is not None else BATCH
+    for start in range(0, n, step):
+        block = a[start:start + step]
+        if arrow is not None:
+            yield _arrow_lines(arrow, block, suffix, first)
+        else:
+            line = " ".join([first] + ["%.17g"] * (k - 1)) + suffix + "\n"
+            yield ((line * len(block)) % tuple(block.ravel().tolist())).encode()
+
+
+#: Rows per piece of the pyarrow formatter.
+ARROW_BATCH = 1 << 20
+
+
+def _arrow():
+    try:
+        import pyarrow
+        import pyarrow.compute
+    except ImportError:
+        return None
+    return pyarrow
+
+
+def _arrow_lines(pa, block: NDArray[np.float64], suffix: str, first: str) -> memoryview:
+    pc = pa.compute
+    columns = []
+    for j in range(block.shape[1]):
+        values = block[:, j]
+        if j == 0 and first == "%d":
+            values = values.astype(np.int64)
+        columns.append(pc.cast(pa.array(values), pa.string()))
+    columns[-1] = pc.binary_join_element_wise(columns[-1], pa.scalar(suffix + "\n"), "")
+    lines = columns[0] if len(columns) == 1 else \
+        pc.binary_join_element_wise(*columns, " ")
+    offsets = np.frombuffer(lines.buffers()[1], np.int32)[lines.offset:
+                                                           lines.offset + len(lines) + 1]
+    return memoryview(lines.buffers()[2])[offsets[0]:offsets[-1]]

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from ._core import RawMesh, atomic_path, check_readable, from_blocks, mesh_data, read_bytes, \
     split_data
-from ._text import BadNumber, format_floats, format_ints, parse, parse_table
+from ._text import BadNumber, format_floats, int_lines, parse, parse_table
 
 __all__ = ["read", "write", "VERSIONS", "GmshError"]
 
@@ -760,8 +760,10 @@ def _write41(out, mesh, binary: bool) -> None:
         out.write(b"\n")
     else:
         out.write(f"1 {n} 1 {n}\n2 1 0 {n}\n".encode())
-        out.write(format_ints(np.arange(1, n + 1)))
-        out.write(format_floats(p, " 0"))
+        for piece in int_lines(np.arange(1, n + 1)):
+            out.write(piece)
+        for piece in format_floats(p, " 0"):
+            out.write(piece)
     out.write(b"$EndNodes\n$Elements\n")
     blocks = [(2, i + 1, 2, rows + 1, np.asarray(mesh.triangles)[rows] + 1)
               for i, (_, rows) in enumerate(surfaces)]
@@ -780,7 +782,8 @@ def _write41(out, mesh, binary: bool) -> None:
             out.write(rows.astype(np.uint64).tobytes())
         else:
             out.write(f"{dim} {ent} {typ} {len(rows)}\n".encode())
-            out.write(format_ints(rows))
+            for piece in int_lines(rows):
+                out.write(piece)
     out.write(b"\n$EndElements\n" if binary else b"$EndElements\n")
 
 
@@ -796,11 +799,8 @@ def _write22(out, mesh, binary: bool) -> None:
         rec["xyz"][:, 2] = 0
         out.write(rec.tobytes() + b"\n")
     else:
-        rows = np.column_stack([np.arange(1, n + 1), p]).ravel().tolist()
-        for start in range(0, n, 65536):
-            count = min(65536, n - start)
-            out.write((("%d %.17g %.17g 0\n" * count) % tuple(rows[3 * start:3 * (start + count)]))
-                      .encode())
+        for piece in format_floats(np.column_stack([np.arange(1, n + 1), p]), " 0", "%d"):
+            out.write(piece)
     out.write(b"$EndNodes\n")
     tri_tags = mesh.cell_tags if mesh.cell_tags is not None else np.zeros(m, np.int64)
     parts = [(2, np.arange(1, m + 1), tri_tags, np.asarray(mesh.triangles))]
@@ -817,7 +817,8 @@ def _write22(out, mesh, binary: bool) -> None:
         else:
             rows = np.column_stack([ids, np.full(len(ids), typ), np.full(len(ids), 2), tags,
                                     geom, nodes + 1])
-            out.write(format_ints(rows))
+            for piece in int_lines(rows):
+                out.write(piece)
     out.write(b"\n$EndElements\n" if binary else b"$EndElements\n")
 
 
@@ -853,7 +854,7 @@ def _data_sections(path: Path, mesh, point_data: dict, cell_data: dict, binary: 
                 rec["tag"], rec["v"] = ids, flat
                 body = rec.tobytes() + b"\n"
             else:
-                body = format_floats(np.column_stack([ids, flat]), first="%d")
+                body = b"".join(format_floats(np.column_stack([ids, flat]), first="%d"))
             parts.append(head + body + f"$End{kind}\n".encode())
     if spec:
         parts.append(b"$QdrefineData\n" + json.dumps(spec).encode() + b"\n$EndQdrefineData\n")
