@@ -48,10 +48,12 @@ def test_binary_round_trip(tmp_path, ext):
     mesh = jittered_grid(6, seed=5)
     if not io.FORMATS[ext].tags:
         mesh = Mesh(mesh.points, mesh.triangles)
+    if ext == ".stl":  # float32 coordinates: only meshes whose points fit are written
+        mesh = Mesh(mesh.points.astype(np.float32).astype(np.float64), mesh.triangles)
     qdrefine.write(tmp_path / f"m{ext}", mesh, binary=True)
     back = qdrefine.read(tmp_path / f"m{ext}")
-    if ext == ".stl":  # float32 coordinates, points merged
-        assert back.n_triangles == mesh.n_triangles
+    if ext == ".stl":  # points merged and renumbered
+        assert triangle_set(back) == triangle_set(mesh)
         return
     same_mesh(mesh, back)
 

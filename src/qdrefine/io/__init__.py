@@ -51,6 +51,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from ..check import MIN_ANGLE, Checked, find
 from ..mesh import Mesh, _data, _names, _transitions
 from . import gmsh, triangle, vtu, xdmf
@@ -245,6 +247,8 @@ def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
         raise ValueError(f"{path}: format_version applies to Gmsh .msh files only")
     _warn_dropped(path, fmt, mesh)
     binary = fmt.binary if binary is None else bool(binary)
+    if binary and path.suffix.lower() == ".stl":
+        _check_float32(path, mesh)
     if fmt is _GMSH:
         gmsh.write(path, mesh, binary=bool(binary),
                    version=format_version or GMSH_VERSIONS[0])
@@ -257,6 +261,18 @@ def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
     else:
         write_with_meshio(path, mesh, fmt.meshio, tags=fmt.tags, data=fmt.data,
                           binary=binary)
+
+
+def _check_float32(path: Path, mesh: Mesh) -> None:
+    """Binary STL stores float32: refuse points that would change (text STL is exact)."""
+    p = np.asarray(mesh.points)
+    changed = np.flatnonzero((p.astype(np.float32).astype(np.float64) != p).any(axis=1))
+    if len(changed):
+        i = int(changed[0])
+        raise ValueError(f"{path}: binary STL stores float32 coordinates, and {len(changed)} "
+                         f"of {len(p)} points would change (first: point {i} at "
+                         f"{tuple(p[i].tolist())}); write text STL (without --binary) or "
+                         "another format")
 
 
 def _warn_dropped(path: Path, fmt: Format, mesh: Mesh) -> None:

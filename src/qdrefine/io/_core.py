@@ -83,13 +83,22 @@ def check_readable(path: Path) -> None:
         raise IsADirectoryError(f"{path}: is a directory, not a mesh file")
 
 
+def check_regular(path: Path) -> None:
+    """:func:`check_readable`, and refuse a FIFO or device (reading one could wait forever)."""
+    check_readable(path)
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        raise OSError(f"{path}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        raise OSError(f"{path}: not a regular file")
+
+
 def read_bytes(path: Path) -> bytes:
     """The whole content of a regular file (``OSError`` naming ``path`` otherwise; a FIFO or
     device is refused before it is opened, so reading never waits on one)."""
-    check_readable(path)
+    check_regular(path)
     try:
-        if not stat.S_ISREG(os.stat(path).st_mode):
-            raise OSError(f"{path}: not a regular file")
         with open(path, "rb") as f:
             return f.read()
     except OSError as exc:

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ._core import RawMesh, atomic_path, check_readable, from_blocks, mesh_data, split_data
+from ._core import RawMesh, atomic_path, check_regular, from_blocks, mesh_data, split_data
 
 __all__ = ["read_with_meshio", "write_with_meshio", "TAG_KEYS"]
 
@@ -54,7 +54,7 @@ def unreadable(path: Path, name: str, exc: BaseException) -> ValueError:
 
 def read_with_meshio(path: Path, meshio_name: str, name: str) -> RawMesh:
     """The content of ``path`` read by meshio as ``meshio_name``."""
-    check_readable(path)
+    check_regular(path)
     import meshio
 
     try:
