@@ -2,7 +2,9 @@
 in the same run (not part of the tests).
 
 For each case (Gmsh MSH 4.1 text and binary, MSH 2.2 text, VTU, XDMF) it writes the input
-(about ``--size`` million triangles, shuffled numbering) in that format, then
+(about ``--size`` million triangles, shuffled numbering) in that format (case
+``gmsh-sdk-41``: an unstructured mesh of that size made and written by the Gmsh SDK, with
+named physical groups), then
 
 * runs ``qdrefine refine IN OUT --quiet`` as a subprocess: the **total wall time** a user
   waits, interpreter start and imports included;
@@ -45,6 +47,7 @@ CASES = {
                    {"binary": False}),
     "vtu": (".vtu", {}, [], "vtu", {"binary": True}),
     "xdmf": (".xdmf", {}, [], "xdmf", {"data_format": "HDF"}),
+    "gmsh-sdk-41": (".msh", {}, [], "gmsh", {"binary": False}),
 }
 
 _CHILD = """
@@ -66,6 +69,38 @@ cmd.refine, cmd.write = timed("refine", cmd.refine), timed("write", cmd.write)
 code = main(sys.argv[1:])
 print(json.dumps({"code": code, **times}))
 """
+
+
+def gmsh_file(size: float, path: Path) -> None:
+    """An unstructured mesh of about ``size`` million triangles made and written (MSH 4.1,
+    text) by the Gmsh SDK itself: a unit square with two named physical surfaces and named
+    boundary curves."""
+    import gmsh
+
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        occ = gmsh.model.occ
+        a = occ.addRectangle(0, 0, 0, 0.5, 1)
+        b = occ.addRectangle(0.5, 0, 0, 0.5, 1)
+        occ.fragment([(2, a)], [(2, b)])
+        occ.synchronize()
+        surfaces = [t for _, t in gmsh.model.getEntities(2)]
+        gmsh.model.addPhysicalGroup(2, surfaces[:1], 1, name="left")
+        gmsh.model.addPhysicalGroup(2, surfaces[1:], 2, name="right")
+        curves = [t for _, t in gmsh.model.getEntities(1)]
+        gmsh.model.addPhysicalGroup(1, curves, 10, name="lines")
+        h = (2.0 / (size * 1e6 * 1.15)) ** 0.5  # about 2 / h^2 / 1.15 triangles
+        gmsh.option.setNumber("Mesh.MeshSizeMin", h)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+        gmsh.option.setNumber("Mesh.Algorithm", 5)
+        gmsh.model.mesh.generate(2)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.option.setNumber("Mesh.Binary", 0)
+        gmsh.write(str(path))
+    finally:
+        gmsh.finalize()
 
 
 def make_mesh(size: float):
@@ -98,7 +133,12 @@ def run_case(folder: Path, name: str, mesh, fine, with_meshio: bool) -> dict[str
 
     ext, options, cli, meshio_format, meshio_options = CASES[name]
     src, out = folder / f"in{ext}", folder / f"out{ext}"
-    qdrefine.write(src, mesh, **options)
+    if name == "gmsh-sdk-41":  # a file Gmsh wrote: its own mesh, refined for the writes
+        gmsh_file(mesh, src)
+        mesh = qdrefine.read(src)
+        fine = qdrefine.refine(mesh)
+    else:
+        qdrefine.write(src, mesh, **options)
     argv = ["refine", str(src), str(out), "--quiet", *cli]
     t0 = time.perf_counter()
     done = subprocess.run([sys.executable, "-m", "qdrefine", *argv], capture_output=True,
@@ -117,7 +157,8 @@ def run_case(folder: Path, name: str, mesh, fine, with_meshio: bool) -> dict[str
     steps = {k: round(split.get(k, 0.0), 3) for k in stages}
     steps["start-up"] = round(child_wall - sum(split.get(k, 0.0) for k in stages), 3)
     result = {"input": {"points": mesh.n_points, "triangles": mesh.n_triangles,
-                        "bytes": src.stat().st_size},
+                        "bytes": src.stat().st_size,
+                        "made by": "Gmsh SDK" if name == "gmsh-sdk-41" else "qdrefine"},
               "output": {"triangles": fine.n_triangles, "bytes": out_bytes},
               "subprocess_wall_s": round(wall, 3), "split_s": steps,
               "split_run_wall_s": round(child_wall, 3)}
@@ -136,7 +177,11 @@ def run_case(folder: Path, name: str, mesh, fine, with_meshio: bool) -> dict[str
         if fine.edges is not None:
             cells.append(("line", np.asarray(fine.edges)))
             physical.append(np.asarray(fine.edge_tags))
+        point_data = {}
+        if meshio_format == "gmsh" and len(cells) > 1:  # meshio's MSH 4.1 writer needs it
+            point_data["gmsh:dim_tags"] = np.tile([2, 1], (fine.n_points, 1))
         m = meshio.Mesh(np.column_stack([fine.points, np.zeros(fine.n_points)]), cells,
+                        point_data=point_data,
                         cell_data={"gmsh:physical": physical,
                                    "gmsh:geometrical": [t + 1 for t in physical]})
         theirs = {"read_s": best(lambda: meshio.read(src)),
@@ -175,7 +220,9 @@ def main() -> None:
         warm_up(Path(tmp))
         for name in args.cases.split(","):
             print(f"{name} ...", file=sys.stderr, flush=True)
-            results["cases"][name] = run_case(Path(tmp), name, mesh, fine, not args.no_meshio)
+            results["cases"][name] = run_case(
+                Path(tmp), name, args.size if name == "gmsh-sdk-41" else mesh, fine,
+                not args.no_meshio)
     results["load_average_after"] = os.getloadavg()
     print(f"{'case':13} {'read':>6} {'check':>6} {'refine':>6} {'write':>6} {'start':>6} "
           f"{'total':>7} | {'read x':>7} {'write x':>7}  (seconds; x: meshio / qdrefine)")

@@ -729,7 +729,8 @@ def _write41(out, mesh, binary: bool) -> None:
     surfaces = _groups(mesh.cell_tags, m)
     curves = _groups(mesh.edge_tags, k) if k else []
     p = np.asarray(mesh.points)
-    box = [*p.min(axis=0), 0.0, *p.max(axis=0), 0.0] if n else [0.0] * 6
+    box = [p[:, 0].min(), p[:, 1].min(), 0.0, p[:, 0].max(), p[:, 1].max(), 0.0] if n \
+        else [0.0] * 6
     # entities: one curve per edge tag, one surface per cell tag (physical tag = the tag)
     out.write(b"$Entities\n")
     if binary:
@@ -765,26 +766,38 @@ def _write41(out, mesh, binary: bool) -> None:
         for piece in format_floats(p, " 0"):
             out.write(piece)
     out.write(b"$EndNodes\n$Elements\n")
-    blocks = [(2, i + 1, 2, rows + 1, np.asarray(mesh.triangles)[rows] + 1)
+    blocks = [(2, i + 1, 2, rows, 0, np.asarray(mesh.triangles), len(surfaces) == 1)
               for i, (_, rows) in enumerate(surfaces)]
-    blocks += [(1, i + 1, 1, rows + 1 + m, np.asarray(mesh.edges)[rows] + 1)
+    blocks += [(1, i + 1, 1, rows, m, np.asarray(mesh.edges), len(curves) == 1)
                for i, (_, rows) in enumerate(curves)]
     total = m + k
     if binary:
         out.write(np.array([len(blocks), total, 1, total], np.uint64).tobytes())
     else:
         out.write(f"{len(blocks)} {total} 1 {total}\n".encode())
-    for dim, ent, typ, ids, nodes in blocks:
-        rows = np.column_stack([ids, nodes]).astype(np.int64)
+    for dim, ent, typ, rows, first, cells, everything in blocks:
+        block = _element_rows(rows, first, cells, everything)
         if binary:
             out.write(np.array([dim, ent, typ], np.int32).tobytes()
-                      + np.array([len(rows)], np.uint64).tobytes())
-            out.write(rows.astype(np.uint64).tobytes())
+                      + np.array([len(block)], np.uint64).tobytes())
+            out.write(memoryview(block.view(np.uint64).reshape(-1)))
         else:
-            out.write(f"{dim} {ent} {typ} {len(rows)}\n".encode())
-            for piece in int_lines(rows):
+            out.write(f"{dim} {ent} {typ} {len(block)}\n".encode())
+            for piece in int_lines(block):
                 out.write(piece)
     out.write(b"\n$EndElements\n" if binary else b"$EndElements\n")
+
+
+def _element_rows(rows: NDArray[np.int64], first: int, cells: NDArray, everything: bool
+                  ) -> NDArray[np.int64]:
+    """``(k, 1 + nodes) int64``: element tag ``first + row + 1`` and 1-based nodes of the
+    ``cells`` at ``rows`` (all of them, without a gather, when ``everything``)."""
+    block = np.empty((len(rows), 1 + cells.shape[1]), np.int64)
+    block[:, 0] = rows
+    block[:, 0] += first + 1
+    block[:, 1:] = cells if everything else cells[rows]
+    block[:, 1:] += 1
+    return block
 
 
 def _write22(out, mesh, binary: bool) -> None:
