@@ -94,52 +94,36 @@ def _pandas_table(text: bytes, columns: int, dtype: type) -> NDArray | None:
 
 
 @njit(cache=True)
-def _digits(v: np.int64) -> int:
-    if v < 0:
-        return 1 + _digits(-v) if v != -9223372036854775807 - 1 else 20
-    n = 1
-    while v >= 10:
-        v //= 10
-        n += 1
-    return n
-
-
-@njit(cache=True)
 def _format_ints(a: NDArray[np.int64]) -> NDArray[np.uint8]:
+    """One pass: each value's digits into a small buffer, then copied in order."""
     n, k = a.shape
-    size = 0
-    for i in range(n):
-        for j in range(k):
-            size += _digits(a[i, j]) + 1
-    out = np.empty(size, dtype=np.uint8)
+    out = np.empty(n * k * 21, dtype=np.uint8)  # at most 20 characters and a separator
+    digits = np.empty(20, dtype=np.uint8)
+    ten, nothing, zero = np.uint64(10), np.uint64(0), np.uint8(48)
     pos = 0
     for i in range(n):
         for j in range(k):
             v = a[i, j]
-            d = _digits(v)
             if v < 0:
                 out[pos] = 45  # '-'
-                if v == -9223372036854775807 - 1:
-                    s = "9223372036854775808"
-                    for c in range(19):
-                        out[pos + 1 + c] = ord(s[c])
-                    pos += 20
-                    out[pos] = 32 if j < k - 1 else 10
-                    pos += 1
-                    continue
-                v = -v
-            end = pos + d
-            q = end - 1
-            while True:
-                out[q] = 48 + v % 10
-                v //= 10
-                q -= 1
-                if v == 0:
+                pos += 1
+                u = np.uint64(-(v + 1)) + np.uint64(1)  # also for -2**63
+            else:
+                u = np.uint64(v)
+            t = 0
+            while True:  # uint64 throughout (mixing with int64 would go through float64)
+                q10 = u // ten
+                digits[t] = np.uint8(u - q10 * ten) + zero
+                u = q10
+                t += 1
+                if u == nothing:
                     break
-            pos = end
+            for q in range(t):
+                out[pos + q] = digits[t - 1 - q]
+            pos += t
             out[pos] = 32 if j < k - 1 else 10
             pos += 1
-    return out
+    return out[:pos]
 
 
 def int_lines(rows: NDArray) -> Iterator[NDArray[np.uint8]]:
