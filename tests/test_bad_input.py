@@ -312,7 +312,7 @@ def test_fifo_is_refused_not_waited_on(tmp_path, ext):
     os.mkfifo(path)
     if ext == ".node":
         (tmp_path / "pipe.ele").write_text("1 3 0\n0 0 1 2\n")
-    with pytest.raises(OSError, match=f"pipe.node: not a regular file" if ext == ".node"
+    with pytest.raises(OSError, match="pipe.node: not a regular file" if ext == ".node"
                        else f"pipe{ext}: not a regular file"):
         qdrefine.read(tmp_path / f"pipe{ext if ext != '.node' else '.ele'}")
     result = cli("refine", path, tmp_path / "out.vtu")

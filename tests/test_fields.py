@@ -42,7 +42,8 @@ def test_coordinates_and_linear_fields_are_reproduced(n, seed, scheme, levels, s
 
 def test_integer_and_vector_fields():
     base = jittered_grid(3, seed=1)
-    mesh = base.replace(point_data={"i": np.arange(base.n_points), "v": np.ones((base.n_points, 2, 2))},
+    mesh = base.replace(point_data={"i": np.arange(base.n_points),
+                                    "v": np.ones((base.n_points, 2, 2))},
                         cell_data={"m": np.ones((base.n_triangles, 3), np.int32)})
     fine = refine(mesh, "7t-qd")
     assert fine.point_data["i"].dtype == np.float64

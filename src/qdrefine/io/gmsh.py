@@ -30,8 +30,15 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ._core import RawMesh, atomic_path, check_readable, from_blocks, mesh_data, read_bytes, \
-    split_data
+from ._core import (
+    RawMesh,
+    atomic_path,
+    check_readable,
+    from_blocks,
+    mesh_data,
+    read_bytes,
+    split_data,
+)
 from ._text import BadNumber, format_floats, int_lines, parse, parse_table
 
 __all__ = ["read", "write", "VERSIONS", "GmshError"]
@@ -130,7 +137,8 @@ class _Content:
         self.version = ""
         self.node_tags: NDArray | None = None
         self.points: NDArray | None = None
-        self.blocks: list[tuple[int, int, int, NDArray, NDArray]] = []  # type, phys, ent, tags, nodes
+        # (type, physical tag(s), dimension, element tags, nodes) per element block
+        self.blocks: list[tuple[int, object, int, NDArray, NDArray]] = []
         self.entities: dict[tuple[int, int], int] = {}
         self.names: dict[tuple[int, int], str] = {}
         self.node_data: dict[str, tuple[NDArray, NDArray]] = {}

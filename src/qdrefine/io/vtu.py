@@ -73,7 +73,7 @@ def _read(path: Path, data: bytes) -> RawMesh:
     tag_end = data.find(b">", start)
     underscore = data.find(b"_", tag_end)
     if tag_end < 0 or underscore < 0:
-        raise ValueError("byte %d: no '_' opening the appended data" % start)
+        raise ValueError(f"byte {start}: no '_' opening the appended data")
     if b'encoding="raw"' not in data[start:tag_end]:
         raise _Fallback
     if b"</VTKFile>" not in data[-64:]:
