@@ -422,3 +422,64 @@ def test_validation_memory_is_checked(monkeypatch):
         check.find(p, t)
     monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, str(need + 160 * 3 * len(t)))
     assert Mesh(p, t).n_triangles == len(t)
+# files that would hang a reader, or outputs that would lose data ---------------------------
+
+@pytest.mark.parametrize("ext", [".msh", ".vtu", ".vtk", ".node"])
+def test_fifo_is_refused_not_waited_on(tmp_path, ext):
+    """A FIFO (or device) named as input: one line, at once, instead of waiting for a writer."""
+    path = tmp_path / f"pipe{ext}"
+    os.mkfifo(path)
+    if ext == ".node":
+        (tmp_path / "pipe.ele").write_text("1 3 0\n0 0 1 2\n")
+    with pytest.raises(OSError, match="pipe.node: not a regular file" if ext == ".node"
+                       else f"pipe{ext}: not a regular file"):
+        qdrefine.read(tmp_path / f"pipe{ext if ext != '.node' else '.ele'}")
+    result = cli("refine", path, tmp_path / "out.vtu")
+    assert result.returncode == 1 and result.stderr.count("\n") == 1
+    assert "not a regular file" in result.stderr and not (tmp_path / "out.vtu").exists()
+
+
+@pytest.mark.parametrize("cut", [0.2, 0.5, 0.95])
+@pytest.mark.parametrize("kwargs", [{}, {"binary": True}, {"format_version": "2.2"},
+                                    {"format_version": "2.2", "binary": True}])
+def test_short_msh_files_fail_with_one_line(tmp_path, cut, kwargs):
+    """Files cut anywhere (counts announced beyond the end): one line naming the file and
+    the line or byte, checked against the file size before anything is allocated."""
+    qdrefine.write(tmp_path / "good.msh", examples.plate_with_hole(), **kwargs)
+    data = (tmp_path / "good.msh").read_bytes()
+    (tmp_path / "cut.msh").write_bytes(data[:int(len(data) * cut)])
+    before = _snapshot(tmp_path)
+    with pytest.raises(ValueError, match=r"cut\.msh: not a readable Gmsh MSH file \((line|byte) "
+                                         r"\d+: "):
+        qdrefine.read(tmp_path / "cut.msh")
+    result = cli("refine", tmp_path / "cut.msh", tmp_path / "out.msh")
+    assert result.returncode == 1 and result.stderr.count("\n") == 1
+    assert result.stderr.startswith(f"qdrefine: error: {tmp_path / 'cut.msh'}: not a readable")
+    assert _snapshot(tmp_path) == before
+
+
+def test_huge_declared_count_is_refused_before_allocating(tmp_path):
+    """A binary $Nodes announcing 2**60 nodes fails on the file size, not on memory."""
+    qdrefine.write(tmp_path / "good.msh", examples.square(2), binary=True)
+    data = bytearray((tmp_path / "good.msh").read_bytes())
+    at = data.index(b"$Nodes\n") + len(b"$Nodes\n")
+    data[at + 8:at + 16] = np.array([2**60], np.uint64).tobytes()  # numNodes
+    data[at + 32 + 12:at + 32 + 20] = np.array([2**60], np.uint64).tobytes()  # block size
+    (tmp_path / "big.msh").write_bytes(bytes(data))
+    with pytest.raises(ValueError, match=r"big\.msh: not a readable Gmsh MSH file \(byte \d+"):
+        qdrefine.read(tmp_path / "big.msh")
+
+
+def test_binary_stl_refuses_to_round_coordinates(tmp_path):
+    """Binary STL holds float32: points that would change are refused (text STL is exact)."""
+    mesh = Mesh(np.array([[0.0, 0.0], [1.0, 0.0], [0.1, 1.0]]), [[0, 1, 2]])
+    with pytest.raises(ValueError, match=r"m\.stl: binary STL stores float32 coordinates, and "
+                                         r"1 of 3 points would change \(first: point 2 at "
+                                         r"\(0\.1, 1\.0\)\)"):
+        qdrefine.write(tmp_path / "m.stl", mesh, binary=True)
+    assert list(tmp_path.iterdir()) == []
+    exact = Mesh(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]]), [[0, 1, 2]])
+    qdrefine.write(tmp_path / "m.stl", exact, binary=True)
+    assert np.array_equal(qdrefine.read(tmp_path / "m.stl").points, exact.points)
+    qdrefine.write(tmp_path / "t.stl", mesh)  # text STL keeps every digit
+    assert qdrefine.read(tmp_path / "t.stl").n_triangles == 1

@@ -48,10 +48,12 @@ def test_binary_round_trip(tmp_path, ext):
     mesh = jittered_grid(6, seed=5)
     if not io.FORMATS[ext].tags:
         mesh = Mesh(mesh.points, mesh.triangles)
+    if ext == ".stl":  # float32 coordinates: only meshes whose points fit are written
+        mesh = Mesh(mesh.points.astype(np.float32).astype(np.float64), mesh.triangles)
     qdrefine.write(tmp_path / f"m{ext}", mesh, binary=True)
     back = qdrefine.read(tmp_path / f"m{ext}")
-    if ext == ".stl":  # float32 coordinates, points merged
-        assert back.n_triangles == mesh.n_triangles
+    if ext == ".stl":  # points merged and renumbered
+        assert triangle_set(back) == triangle_set(mesh)
         return
     same_mesh(mesh, back)
 
@@ -106,13 +108,23 @@ def test_gmsh_22_and_41_files_with_physical_groups():
         assert lengths[m22.edge_tags == tag].sum() == pytest.approx(length)
 
 
-def test_msh_output_is_version_22_with_line_tags(tmp_path):
-    qdrefine.write(tmp_path / "a.msh", examples.plate_with_hole())
-    text = (tmp_path / "a.msh").read_text()
+def test_msh_output_is_version_41_by_default_and_22_on_request(tmp_path):
+    mesh = examples.plate_with_hole()
+    qdrefine.write(tmp_path / "a.msh", mesh)
+    assert (tmp_path / "a.msh").read_text().startswith("$MeshFormat\n4.1 0 8\n")
+    qdrefine.write(tmp_path / "b.msh", mesh, format_version="2.2")
+    text = (tmp_path / "b.msh").read_text()
     assert text.startswith("$MeshFormat\n2.2 0 8\n")
     # element type 1 (line) with physical tag 2 (the hole)
     assert any(line.split()[1:4] == ["1", "2", "2"] for line in
                text.split("$Elements\n")[1].splitlines()[1:] if len(line.split()) > 3)
+    for name in ("a.msh", "b.msh"):
+        same_mesh(mesh, qdrefine.read(tmp_path / name))
+    with pytest.raises(ValueError, match="version must be one of 4.1, 2.2"):
+        qdrefine.write(tmp_path / "c.msh", mesh, format_version="3")
+    with pytest.raises(ValueError, match="Gmsh .msh files only"):
+        qdrefine.write(tmp_path / "c.vtu", mesh, format_version="2.2")
+    assert not (tmp_path / "c.msh").exists() and not (tmp_path / "c.vtu").exists()
 
 
 def msh22(nodes, elements) -> str:
@@ -177,21 +189,51 @@ def test_bad_files_and_names(tmp_path):
     assert not (tmp_path / "nowhere").exists()
 
 
-def test_write_is_atomic(tmp_path, monkeypatch):
+class _DiskFull:
+    """A file whose writes fail after writing "partial"."""
+
+    def __init__(self, path, mode="w", *args, **kwargs):
+        self.f = open(path, mode)  # noqa: SIM115
+
+    def write(self, data):
+        self.f.write(b"partial" if "b" in self.f.mode else "partial")
+        raise RuntimeError("disk full")
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.f.close()
+
+
+@pytest.mark.parametrize("ext", [".vtk", ".vtu", ".msh", ".node", ".xdmf"])
+def test_write_is_atomic(tmp_path, monkeypatch, ext):
+    """A failure while writing leaves the old files as they were and no stray file, for
+    meshio's writers and ours (Triangle's and XDMF's file sets included)."""
     import meshio
 
-    path = tmp_path / "keep.vtu"
-    path.write_text("old content")
+    from qdrefine.io import gmsh, triangle, vtu, xdmf
+
+    names = {".node": ["keep.node", "keep.ele", "keep.poly"],
+             ".xdmf": ["keep.xdmf", "keep.h5"]}.get(ext, [f"keep{ext}"])
+    for name in names:
+        (tmp_path / name).write_text("old content")
 
     def broken(filename, *args, **kwargs):
-        Path(filename).write_text("partial")
+        with open(filename, "w") as f:
+            f.write("partial")
         raise RuntimeError("disk full")
 
     monkeypatch.setattr(meshio, "write", broken)
+    for module in (gmsh, vtu, triangle):
+        monkeypatch.setattr(module, "open", _DiskFull, raising=False)
+    monkeypatch.setattr(Path, "write_text", lambda self, *a, **k: broken(self))
     with pytest.raises(RuntimeError, match="disk full"):
-        qdrefine.write(path, examples.square(2))
-    assert path.read_text() == "old content"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.vtu"]
+        qdrefine.write(tmp_path / names[0], jittered_grid(4, seed=2))
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(names)
+    assert all((tmp_path / name).read_text() == "old content" for name in names)
+    del xdmf
 
 
 def test_new_files_get_ordinary_permissions(tmp_path):

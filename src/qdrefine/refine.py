@@ -7,6 +7,7 @@ import operator
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .fields import refine_point_data
 from .kernels import emit, rounding_suspects
 from .memory import check_memory
 from .mesh import Mesh, edge_ids, index_dtype
@@ -59,7 +60,11 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
         Old points keep their indices; each edge's new points are shared by its two
         triangles; the ``T`` children of triangle ``t`` are rows ``t*T .. t*T+T-1``;
         cell tags are inherited and every tagged edge becomes ``T``-scheme's edge pieces
-        (three for 7T schemes, two for 4T) with the same tag and direction.
+        (three for 7T schemes, two for 4T) with the same tag and direction. Point data is
+        interpolated linearly to the new points, by the formula of their coordinates (a
+        linear field stays exact up to rounding; integer fields become float64), cell
+        data is inherited by the children, physical names are kept
+        (:mod:`qdrefine.fields`).
 
     Examples
     --------
@@ -150,11 +155,15 @@ def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
                                                mesh._take_buckets())
     cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
     new_edges, edge_tags = None, None
+    edges = buckets.edges()[0] if mesh.edges is not None or mesh.point_data else None
     if mesh.edges is not None:
-        edges, _ = buckets.edges()
         new_edges, edge_tags = split_tagged_edges(mesh.edges, mesh.edge_tags, edges, n, k)
         new_edges = new_edges.astype(triangles.dtype)
-    return Mesh._trusted(points, triangles, cell_tags, new_edges, edge_tags)
+    point_data = refine_point_data(mesh.point_data, edges, k) if mesh.point_data else None
+    cell_data = {name: np.repeat(value, sch.n_children, axis=0)
+                 for name, value in (mesh.cell_data or {}).items()}
+    return Mesh._trusted(points, triangles, cell_tags, new_edges, edge_tags, point_data,
+                         cell_data, mesh.physical_names)
 
 
 def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: NDArray[np.float64],

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from ..io import FORMATS, atomic_path
+from ..io import FORMATS, GMSH_VERSIONS, atomic_path
 
 #: Extension of a chunked Zarr mesh store (:mod:`qdrefine.store`).
 STORE = ".zarr"
@@ -34,6 +34,19 @@ def setup(parser: argparse.ArgumentParser, quiet: bool = True) -> None:
     if quiet:
         parser.add_argument("-q", "--quiet", action="store_true",
                             help="print nothing but errors and warnings; no progress bar")
+
+
+def add_format_version(parser: argparse.ArgumentParser) -> None:
+    """``--format-version``: the Gmsh MSH version of a ``.msh`` output."""
+    parser.add_argument("--format-version", choices=GMSH_VERSIONS, default=None,
+                        metavar="V", help=f"Gmsh .msh version to write: "
+                        f"{' or '.join(GMSH_VERSIONS)} (default {GMSH_VERSIONS[0]})")
+
+
+def check_format_version(path: str, version: str | None) -> None:
+    """``--format-version`` applies to a ``.msh`` output only."""
+    if version is not None and Path(path).suffix.lower() != ".msh":
+        raise ValueError(f"{path}: --format-version applies to Gmsh .msh output only")
 
 
 def non_negative(text: str) -> int:

@@ -23,6 +23,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                         "to write (complete or absent)")
     parser.add_argument("--binary", action="store_true",
                         help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply")
+    _common.add_format_version(parser)
     parser.add_argument("--chunk-size", type=_positive, default=None, metavar="ROWS",
                         help="rows per chunk of a new store (default 262144)")
 
@@ -37,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
                                  f"{_common.STORE}), without --binary")
         else:
             _common.check_output(args.output, (args.input,), kinds="any", binary=args.binary)
+            _common.check_format_version(args.output, args.format_version)
         if args.chunk_size is not None and not to_store:
             raise ValueError("--chunk-size applies to a .zarr output only")
         if from_store or to_store:
@@ -44,12 +46,16 @@ def run(args: argparse.Namespace) -> int:
 
             if from_store and to_store:
                 store.create(args.output, store.to_mesh(args.input), *_chunk(args))
+            elif from_store and args.format_version == "4.1":  # streamed export is MSH 2.2
+                write(args.output, store.to_mesh(args.input), binary=args.binary or None,
+                      format_version="4.1")
             elif from_store:
                 store.to_file(args.input, args.output, binary=args.binary or None)
             else:
                 store.from_file(args.input, args.output, *_chunk(args))
         else:
-            write(args.output, read(args.input), binary=args.binary or None)
+            write(args.output, read(args.input), binary=args.binary or None,
+                  format_version=args.format_version)
         if not args.quiet:
             print(f"{args.output}: written from {args.input}")
     return 0

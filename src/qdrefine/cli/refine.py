@@ -34,12 +34,14 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                      "0,0,0.1,0.1 --cycles 5")
     parser.add_argument("input", metavar="IN", help="mesh file to read (never modified)")
     parser.add_argument("output", metavar="OUT",
-                        help="mesh file to write (written atomically; .msh is Gmsh 2.2)")
+                        help="mesh file to write (written atomically; .msh is Gmsh 4.1 unless "
+                             "--format-version 2.2)")
     parser.add_argument("--scheme", default="7t-qd", metavar="NAME",
                         help=f"one of {', '.join(scheme_names())} (default 7t-qd)")
     parser.add_argument("--binary", action="store_true",
                         help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply "
                              "(much faster for large meshes)")
+    _common.add_format_version(parser)
     parser.add_argument("--levels", type=_common.non_negative, default=None, metavar="N",
                         help="refine every triangle N times (default 1; 7T schemes multiply "
                              "the triangles by 7 per level); not with a mark")
@@ -75,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
         if args.dask is not None:
             return _on_dask(args)
         _common.check_output(args.output, (args.input,), binary=args.binary)
+        _common.check_format_version(args.output, args.format_version)
         start = time.perf_counter()
         with _common.Progress(steps + 2, args.quiet) as progress:
             progress.step(f"reading {args.input}")
@@ -86,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
                     raise
                 raise ValueError(f"{args.input}: {exc}") from None
             progress.step(f"writing {args.output}")
-            write(args.output, fine, binary=args.binary or None)
+            write(args.output, fine, binary=args.binary or None,
+                  format_version=args.format_version)
         if not args.quiet:
             print(f"{args.output}: {fine.n_triangles} triangles, {fine.n_points} points "
                   f"({summary}, {time.perf_counter() - start:.2f} s)")

@@ -1,0 +1,294 @@
+"""Reading and writing mesh files.
+
+:func:`read` and :func:`write` choose the format from the file extension: one module per
+format, registered in :data:`FORMATS`. Gmsh ``.msh`` (:mod:`.gmsh`), VTK XML ``.vtu``
+(:mod:`.vtu`), XDMF + HDF5 (:mod:`.xdmf`) and Triangle's ``.node/.ele/.poly``
+(:mod:`.triangle`) have readers and writers of their own, built for large meshes (whole
+arrays at once); every other format goes through meshio (:mod:`.meshio_formats`, the only
+module that imports it, lazily).
+
+What each format keeps
+----------------------
+- Gmsh ``.msh``: **MSH 4.1** by default (``format_version="2.2"`` for 2.2), text unless
+  ``binary=True``. The physical tag of each triangle is ``cell_tags``; line elements with a
+  physical tag are tagged ``edges``; ``$PhysicalNames`` are ``physical_names``; point data
+  and cell data are ``$NodeData`` / ``$ElementData`` views. 2.0-2.2 and 4.1 are read (4.0
+  through meshio).
+- VTK XML ``.vtu``: binary (appended raw data) by default; line and triangle cells with the
+  integer cell array ``tag``, point and cell data, physical names.
+- XDMF ``.xdmf`` / ``.xmf``: XML plus an HDF5 file ``name.h5`` (both written as a set); tags,
+  point and cell data, physical names.
+- VTK legacy ``.vtk``: tags, point and cell data (no physical names).
+- Medit ``.mesh``: the references of ``Triangles`` and ``Edges``.
+- Triangle ``.node/.ele/.poly``: the first regional attribute of ``.ele`` is the cell tag;
+  the segments of ``.poly`` with a nonzero boundary marker are the tagged edges.
+- OFF, OBJ, STL, PLY hold triangles only.
+What a format cannot hold is dropped on writing with one warning naming it.
+:attr:`~qdrefine.Mesh.transitions` travels as the cell data ``qdrefine:transitions``
+(3 integers per triangle), so the formats with cell data keep it.
+
+A tag of 0 means "untagged", as in Gmsh (physical group 0) and Triangle (marker 0): line
+cells or segments tagged 0 are not read as tagged edges, and triangles that are all tagged 0
+give ``cell_tags = None``.
+
+Checks on reading
+-----------------
+3D points are accepted when every z is 0; anything else is refused. Only linear triangles are
+meshed; vertex and line cells are allowed alongside, any other cell type is refused.
+Clockwise triangles are flipped to counter-clockwise with a warning. Every problem raises
+``ValueError`` (bad content) or ``OSError`` (missing or unreadable file) whose message starts
+with the file name (and the line or byte offset, where the reader knows it).
+
+Writing is atomic: the data goes to temporary files in the target directory, which replace
+the targets only once everything is written, so a failure never leaves a partial file.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..check import MIN_ANGLE, Checked, find
+from ..mesh import Mesh, _data, _names, _transitions
+from . import gmsh, triangle, vtu, xdmf
+from ._core import RawMesh, atomic_path, atomic_paths, permission_bits
+from .meshio_formats import read_with_meshio, write_with_meshio
+
+__all__ = ["read", "read_raw", "check_file", "write", "FORMATS", "Format", "RawMesh",
+           "atomic_path", "atomic_paths", "permission_bits", "GMSH_VERSIONS"]
+
+PathLike = str | os.PathLike
+
+#: The Gmsh MSH versions :func:`write` writes (the first is the default).
+GMSH_VERSIONS = gmsh.VERSIONS
+
+
+@dataclass(frozen=True)
+class Format:
+    """One file format: its name, meshio's name for it (``None``: not through meshio),
+    whether it holds tags, whether it is written binary by default (``None``: text only),
+    whether it holds point and cell data, and whether it holds physical names."""
+
+    name: str
+    meshio: str | None
+    tags: bool
+    binary: bool | None = None
+    data: bool = False
+    names: bool = False
+
+    def reader(self) -> Callable[[Path], RawMesh]:
+        own = _READERS.get(self.name)
+        if own is not None:
+            return own
+        return lambda path: read_with_meshio(path, self.meshio, self.name)
+
+
+_GMSH = Format("Gmsh MSH", "gmsh", True, False, True, True)
+_VTU = Format("VTK XML unstructured grid", "vtu", True, True, True, True)
+_XDMF = Format("XDMF", "xdmf", True, None, True, True)
+_TRIANGLE = Format("Triangle .node/.ele/.poly", None, True)
+
+#: Known extensions (lower case) and their formats.
+FORMATS: dict[str, Format] = {
+    ".msh": _GMSH,
+    ".vtk": Format("VTK legacy", "vtk", True, True, True),
+    ".vtu": _VTU,
+    ".xdmf": _XDMF,
+    ".xmf": _XDMF,
+    ".mesh": Format("Medit", "medit", True),
+    ".off": Format("OFF", "off", False),
+    ".obj": Format("Wavefront OBJ", "obj", False),
+    ".stl": Format("STL", "stl", False, False),
+    ".ply": Format("PLY", "ply", False, True),
+    ".node": _TRIANGLE,
+    ".ele": _TRIANGLE,
+    ".poly": _TRIANGLE,
+}
+
+_READERS: dict[str, Callable[[Path], RawMesh]] = {
+    _GMSH.name: gmsh.read, _VTU.name: vtu.read, _XDMF.name: xdmf.read,
+    _TRIANGLE.name: triangle.read,
+}
+
+
+def _format_of(path: Path) -> Format:
+    ext = path.suffix.lower()
+    if ext not in FORMATS:
+        known = ", ".join(FORMATS)
+        what = f"extension '{path.suffix}'" if path.suffix else "no extension"
+        raise ValueError(f"{path}: unknown file format ({what}); known extensions: {known}")
+    return FORMATS[ext]
+
+
+# --------------------------------------------------------------------------------------------
+# reading
+
+
+def read(path: PathLike) -> Mesh:
+    """Read a triangle mesh from ``path``; the format follows the extension.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file with an extension of :data:`FORMATS`. For Triangle files give any of
+        ``name.node``, ``name.ele`` or ``name.poly``: ``name.node`` and ``name.ele`` are read,
+        and ``name.poly`` too if it exists (its marked segments become tagged edges).
+
+    Returns
+    -------
+    Mesh
+        Points ``(N, 2)`` (z dropped when every z is 0), counter-clockwise triangles
+        ``(M, 3)`` (clockwise ones flipped, with a warning), ``cell_tags (M,)`` and tagged
+        ``edges (K, 2)``, ``point_data``, ``cell_data``, ``physical_names`` and
+        ``transitions`` where the file has them.
+
+    Raises
+    ------
+    OSError
+        The file is missing or unreadable.
+    ValueError
+        Unknown extension, a corrupt file, or content that is not a valid flat triangle
+        mesh (any error of :data:`qdrefine.check.KINDS`); the message starts with the file
+        name (and the line or byte, where known) and names the first problem.
+    """
+    raw = read_raw(path)
+    for problem in raw.problems:
+        if problem.severity == "error":
+            raise ValueError(problem.message)
+    found = find(raw.points, raw.triangles, raw.cell_tags, raw.edges, raw.edge_tags,
+                 flip_clockwise=True, stop_at_error=True, warnings=False, base=raw.base)
+    problems = [raw.locate(p) for p in found.problems]
+    for problem in problems:
+        if problem.severity == "error":
+            raise ValueError(problem.message)
+        if problem.kind == "clockwise":
+            warnings.warn(problem.message, stacklevel=2)
+    n, m = found.points.shape[0], found.triangles.shape[0]
+    try:
+        point_data = _data(raw.point_data, n, "point_data", "points")
+        cell_data = _data(raw.cell_data, m, "cell_data", "triangles")
+        names = _names(raw.physical_names)
+        transitions = _transitions(raw.transitions, found.triangles, n)
+    except ValueError as exc:
+        raise ValueError(f"{raw.path}: {exc}") from None
+    return Mesh._trusted(found.points, found.triangles, found.cell_tags, found.edges,
+                         found.edge_tags, point_data, cell_data, names, transitions)
+
+
+def check_file(path: PathLike, min_angle: float = MIN_ANGLE) -> tuple[RawMesh, Checked]:
+    """Every problem of a mesh file (:func:`qdrefine.check.find` on what the file holds).
+
+    Raises ``OSError`` / ``ValueError`` only when the file cannot be read at all (missing,
+    unknown format, corrupt); content problems are returned, each message starting with the
+    file name (and line), as :func:`read` would raise them.
+    """
+    raw = read_raw(path)
+    found = find(raw.points, raw.triangles, raw.cell_tags, raw.edges, raw.edge_tags,
+                 flip_clockwise=True, min_angle=min_angle, geometry=raw.flat, base=raw.base)
+    seen = {p.kind for p in raw.problems}
+    found.problems[:] = raw.problems + [raw.locate(p) for p in found.problems
+                                        if p.kind not in seen]
+    return raw, found
+
+
+def read_raw(path: PathLike) -> RawMesh:
+    """The content of a mesh file without checking it as a mesh (see :func:`check_file`).
+
+    Raises ``OSError`` (missing, unreadable) or ``ValueError`` (unknown format, corrupt or
+    truncated file) with the file name first.
+    """
+    path = Path(path)
+    return _format_of(path).reader()(path)
+
+
+# --------------------------------------------------------------------------------------------
+# writing
+
+
+def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
+          format_version: str | None = None) -> None:
+    """Write ``mesh`` to ``path``; the format follows the extension (see :data:`FORMATS`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    mesh : Mesh
+    binary : bool, optional
+        The binary variant of ``.msh``, ``.vtk``, ``.vtu``, ``.stl`` and ``.ply`` (other
+        formats refuse ``binary=True``). By default ``.msh`` and ``.stl`` are text and
+        ``.vtk``, ``.vtu``, ``.ply`` binary. Binary is several times faster for large
+        meshes (``docs/performance.md``).
+    format_version : {"4.1", "2.2"}, optional
+        Gmsh ``.msh`` only: the MSH version (default 4.1, what current Gmsh writes).
+
+    Notes
+    -----
+    XDMF files come with their HDF5 file ``name.h5``. For Triangle files (``name.node``,
+    ``name.ele`` or ``name.poly``) all three are written: ``.node`` (points), ``.ele``
+    (triangles, with the cell tag as regional attribute) and ``.poly`` (no points of its own;
+    the tagged edges as marked segments). Files written together replace their targets
+    together, only once all are written.
+
+    What the format cannot hold (tags; point and cell data; physical names) is dropped with
+    a warning, as is any edge tag equal to 0 (0 reads as untagged).
+    """
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"write() needs a Mesh, got {type(mesh).__name__}")
+    path = Path(path)
+    fmt = _format_of(path)
+    if binary and fmt.binary is None:
+        raise ValueError(f"{path}: {fmt.name} files have no binary variant")
+    if format_version is not None and fmt is not _GMSH:
+        raise ValueError(f"{path}: format_version applies to Gmsh .msh files only")
+    _warn_dropped(path, fmt, mesh)
+    binary = fmt.binary if binary is None else bool(binary)
+    if binary and path.suffix.lower() == ".stl":
+        _check_float32(path, mesh)
+    if fmt is _GMSH:
+        gmsh.write(path, mesh, binary=bool(binary),
+                   version=format_version or GMSH_VERSIONS[0])
+    elif fmt is _VTU:
+        vtu.write(path, mesh, binary=bool(binary))
+    elif fmt is _XDMF:
+        xdmf.write(path, mesh)
+    elif fmt is _TRIANGLE:
+        triangle.write(path, mesh)
+    else:
+        write_with_meshio(path, mesh, fmt.meshio, tags=fmt.tags, data=fmt.data,
+                          binary=binary)
+
+
+def _check_float32(path: Path, mesh: Mesh) -> None:
+    """Binary STL stores float32: refuse points that would change (text STL is exact)."""
+    p = np.asarray(mesh.points)
+    changed = np.flatnonzero((p.astype(np.float32).astype(np.float64) != p).any(axis=1))
+    if len(changed):
+        i = int(changed[0])
+        raise ValueError(f"{path}: binary STL stores float32 coordinates, and {len(changed)} "
+                         f"of {len(p)} points would change (first: point {i} at "
+                         f"{tuple(p[i].tolist())}); write text STL (without --binary) or "
+                         "another format")
+
+
+def _warn_dropped(path: Path, fmt: Format, mesh: Mesh) -> None:
+    tagged = mesh.cell_tags is not None or mesh.edges is not None
+    if tagged and not fmt.tags:
+        warnings.warn(f"{path}: {fmt.name} files hold no tags; cell and edge tags are dropped",
+                      stacklevel=3)
+    elif mesh.edge_tags is not None and (mesh.edge_tags == 0).any():
+        warnings.warn(f"{path}: {int((mesh.edge_tags == 0).sum())} edges have tag 0, which "
+                      "reads back as untagged", stacklevel=3)
+    data = [*(mesh.point_data or {}), *(mesh.cell_data or {})]
+    if mesh.transitions is not None:
+        data.append("transitions")
+    if data and not fmt.data:
+        warnings.warn(f"{path}: {fmt.name} files hold no point or cell data; "
+                      f"{', '.join(data)} dropped", stacklevel=3)
+    if mesh.physical_names and not fmt.names:
+        warnings.warn(f"{path}: {fmt.name} files hold no physical names; they are dropped",
+                      stacklevel=3)

@@ -1,0 +1,260 @@
+"""What every reader and writer shares: the raw content of a file (:class:`RawMesh`), the
+conversion of cell blocks to triangles and tags, atomic writes and file checks."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import stat
+import tempfile
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..check import Problem
+
+PathLike = str | os.PathLike
+
+#: The cell-data name under which :attr:`qdrefine.Mesh.transitions` is stored in files.
+TRANSITIONS = "qdrefine:transitions"
+
+
+@dataclass
+class RawMesh:
+    """What a mesh file holds, before any check: ``points (N, 2) float64`` (z dropped),
+    ``triangles (M, 3) int64`` (0-based), optional tags; ``point_data`` / ``cell_data``
+    (one row per point / triangle), ``physical_names`` (``(dim, tag) -> name``) and
+    ``transitions`` (``(M, 3)`` refinement history); the problems the reader itself found
+    (non-flat points, other cell types, bad tags), whether the points are flat, the number
+    of the first point and triangle in the file, and for Triangle files the line of each
+    point, triangle and tagged edge (``lines[kind] = (file, (K,) line numbers)``)."""
+
+    path: Path
+    points: NDArray[np.float64]
+    triangles: NDArray[np.int64]
+    cell_tags: NDArray | None = None
+    edges: NDArray | None = None
+    edge_tags: NDArray | None = None
+    problems: list[Problem] = field(default_factory=list)
+    flat: bool = True
+    base: int = 0
+    lines: dict[str, tuple[Path, NDArray]] = field(default_factory=dict)
+    point_data: dict[str, NDArray] = field(default_factory=dict)
+    cell_data: dict[str, NDArray] = field(default_factory=dict)
+    physical_names: dict[tuple[int, int], str] = field(default_factory=dict)
+    transitions: NDArray | None = None
+
+    def problem(self, kind: str, message: str, count: int = 1, **where) -> None:
+        """Record a problem found while reading (message prefixed with the file name)."""
+        self.problems.append(self.locate(Problem(kind, message, count, where)))
+
+    def locate(self, problem: Problem) -> Problem:
+        """``problem`` with the file name (and line, for errors in Triangle files) in front
+        of its message and in ``where``."""
+        file, line = self._line(problem.where) if problem.severity == "error" else (
+            self.path, None)
+        where = {**problem.where, "file": str(file)} | ({"line": line} if line else {})
+        message = problem.message
+        if not message.startswith(str(file)):
+            message = (f"{file}:{line}: " if line else f"{file}: ") + message
+        return Problem(problem.kind, message, problem.count, where, problem.severity)
+
+    def _line(self, where: dict) -> tuple[Path, int | None]:
+        """The file and line of the first triangle, tagged edge or point named by ``where``."""
+        for key, kind in (("triangle", "triangle"), ("triangles", "triangle"),
+                          ("edge_row", "edge"), ("vertex", "point"), ("point", "point"),
+                          ("points", "point")):
+            if key in where and kind in self.lines:
+                ident = where[key][0] if isinstance(where[key], list) else where[key]
+                row = ident - (0 if kind == "edge" else self.base)
+                file, numbers = self.lines[kind]
+                if 0 <= row < len(numbers):
+                    return file, int(numbers[row])
+        return self.path, None
+
+
+def check_readable(path: Path) -> None:
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    if path.is_dir():
+        raise IsADirectoryError(f"{path}: is a directory, not a mesh file")
+
+
+def check_regular(path: Path) -> None:
+    """:func:`check_readable`, and refuse a FIFO or device (reading one could wait forever)."""
+    check_readable(path)
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        raise OSError(f"{path}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        raise OSError(f"{path}: not a regular file")
+
+
+def read_bytes(path: Path) -> bytes:
+    """The whole content of a regular file (``OSError`` naming ``path`` otherwise; a FIFO or
+    device is refused before it is opened, so reading never waits on one)."""
+    check_regular(path)
+    try:
+        with open(path, "rb") as f:
+            return f.read()
+    except OSError as exc:
+        if str(exc).startswith(str(path)):
+            raise
+        raise OSError(f"{path}: {exc.strerror or exc}") from None
+
+
+def flat_points(raw: RawMesh, points: NDArray) -> None:
+    """Store ``points`` as 2D; a problem (and no geometric checks) unless every z is 0."""
+    if points.shape[1] == 3:
+        z = points[:, 2]
+        bad = z != 0
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raw.flat = False
+            raw.problem("not-flat", f"the mesh is not flat: {int(bad.sum())} of {len(points)} "
+                        f"points have z != 0 (first: point {i}, z = {z[i]!r}); qdrefine reads "
+                        "2D meshes, or 3D ones with z = 0", int(bad.sum()), point=i)
+        points = points[:, :2]
+    raw.points = np.ascontiguousarray(points, dtype=np.float64)
+
+
+def integer_tags(raw: RawMesh, tags: NDArray, what: str) -> NDArray[np.int64] | None:
+    t = np.asarray(tags)
+    if np.issubdtype(t.dtype, np.integer):
+        return t.astype(np.int64)
+    try:
+        values = t.astype(np.float64)
+    except (TypeError, ValueError):
+        values = np.array([np.nan])
+    ok = np.isfinite(values) & (np.abs(values) < 2.0**62)
+    if ok.all() and (np.round(values) == values).all():
+        return values.astype(np.int64)
+    raw.problem(f"{what}-tags", f"{what} tags must be integers")
+    return None
+
+
+def from_blocks(path: Path, points: NDArray, blocks: list[tuple[str, NDArray]],
+                tags: list[NDArray | None]) -> RawMesh:
+    """A :class:`RawMesh` from points ``(N, 2|3)`` and cell blocks ``(type, (k, nodes))`` with
+    their tags (``None``: untagged); triangles keep the order of the blocks."""
+    tris, tri_tags, lines, line_tags = [], [], [], []
+    others: dict[str, int] = {}
+    for (kind, data), tag in zip(blocks, tags, strict=True):
+        if kind == "triangle":
+            tris.append(data)
+            tri_tags.append(tag)
+        elif kind == "line":
+            if tag is not None:
+                lines.append(data)
+                line_tags.append(tag)
+        elif kind != "vertex":
+            others[kind] = others.get(kind, 0) + len(data)
+    raw = RawMesh(path, np.empty((0, 2)), np.empty((0, 3), dtype=np.int64))
+    flat_points(raw, points)
+    if others:
+        what = ", ".join(f"{n} {t}" for t, n in others.items())
+        raw.problem("cell-types", f"holds {what} cells; qdrefine reads linear triangles "
+                    "(with line and vertex cells) only", sum(others.values()))
+    if sum(len(t) for t in tris) == 0:
+        raw.problem("no-triangles", "holds no triangles", 0)
+        return raw
+    raw.triangles = (tris[0] if len(tris) == 1 else np.concatenate(tris)).astype(
+        np.int64, copy=False)
+    if all(t is not None for t in tri_tags):
+        raw.cell_tags = integer_tags(raw, np.concatenate(tri_tags), "cell")
+        if raw.cell_tags is not None and not raw.cell_tags.any():
+            raw.cell_tags = None
+    if lines:
+        edges = np.concatenate(lines)
+        edge_tags = integer_tags(raw, np.concatenate(line_tags), "edge")
+        if edge_tags is not None and (edge_tags != 0).any():
+            keep = edge_tags != 0
+            raw.edges, raw.edge_tags = edges[keep].astype(np.int64, copy=False), edge_tags[keep]
+    return raw
+
+
+def split_data(raw: RawMesh, point_data: Mapping[str, NDArray],
+               cell_data: Mapping[str, NDArray]) -> None:
+    """Store point and cell data on ``raw``; the cell data named :data:`TRANSITIONS` becomes
+    ``raw.transitions`` (``(M, 3) int64``)."""
+    raw.point_data.update(point_data)
+    for name, value in cell_data.items():
+        if name == TRANSITIONS:
+            t = np.asarray(value)
+            if t.ndim != 2 or t.shape[1] != 3 or (t.dtype.kind == "f" and
+                                                  not (np.round(t) == t).all()):
+                raise ValueError(f"{raw.path}: cell data {TRANSITIONS!r} must be 3 integers "
+                                 "per triangle")
+            raw.transitions = t.astype(np.int64)
+        else:
+            raw.cell_data[name] = value
+
+
+def mesh_data(mesh) -> tuple[dict[str, NDArray], dict[str, NDArray]]:
+    """Point data and cell data of ``mesh`` to write, the transitions as cell data."""
+    cell_data = dict(mesh.cell_data or {})
+    if mesh.transitions is not None:
+        cell_data[TRANSITIONS] = np.asarray(mesh.transitions, dtype=np.int64)
+    return dict(mesh.point_data or {}), cell_data
+
+
+# --------------------------------------------------------------------------------------------
+# writing
+
+
+@contextlib.contextmanager
+def atomic_path(path: PathLike) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; on success it replaces ``path``.
+
+    On any exception the temporary file is removed and ``path`` is left as it was. The
+    temporary name keeps the extension, so tools that look at it still work.
+    """
+    with atomic_paths([path]) as (tmp,):
+        yield tmp
+
+
+@contextlib.contextmanager
+def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
+    """:func:`atomic_path` for a set of files written together (Triangle's three files, XDMF
+    and its HDF5 file): temporary paths are yielded, and only when all were written do they
+    replace their targets (one ``os.replace`` each, in order, after every write succeeded)."""
+    targets = [Path(p) for p in paths]
+    for path in targets:
+        if not path.parent.is_dir():
+            raise FileNotFoundError(f"{path}: directory {path.parent} does not exist")
+        if path.is_dir():
+            raise IsADirectoryError(f"{path}: is a directory")
+    temps: list[Path] = []
+    try:
+        for path in targets:
+            try:
+                fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.",
+                                           suffix=f".tmp{path.suffix}", dir=path.parent)
+            except OSError as exc:
+                raise OSError(f"{path}: cannot write: {exc.strerror or exc}") from None
+            os.close(fd)
+            temps.append(Path(tmp))
+            os.chmod(tmp, permission_bits(path))
+        yield temps
+        for tmp, path in zip(temps, targets, strict=True):
+            os.replace(tmp, path)
+    except BaseException:
+        for tmp in temps:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        raise
+
+
+def permission_bits(path: Path, new: int = 0o666) -> int:
+    """The permission bits of ``path`` if it exists, else ``new`` less the umask (``0o666``
+    for a new file, ``0o777`` for a new directory)."""
+    try:
+        return path.stat().st_mode & 0o777
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return new & ~umask

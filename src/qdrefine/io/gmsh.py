@@ -1,0 +1,882 @@
+"""Gmsh MSH 2.2 and 4.1, ASCII and binary: read and write, with physical names, tagged lines
+and point / cell data (``$NodeData`` / ``$ElementData``).
+
+Reading parses each section with whole-array NumPy operations (``np.fromstring`` for text,
+``np.frombuffer`` for binary); writing formats whole arrays at once. Files in MSH 2.0-2.2
+and 4.1 are read (4.0 goes to meshio); 4.1 is written by default, 2.2 on request.
+
+Layout of the files written
+---------------------------
+- Points are node tags ``1..N`` in one node block; z is written as 0.
+- Triangles are elements ``1..M`` (in mesh order), tagged lines ``M+1..M+K``. In MSH 2.2
+  each element carries its physical tag (0: none) and a geometrical tag; in MSH 4.1 the
+  elements are grouped into one entity per tag value (a surface for each cell tag, a curve
+  for each edge tag), whose physical tag is the tag (none for 0). Reading sorts elements by
+  element tag, so the mesh order survives the grouping.
+- ``$PhysicalNames`` holds :attr:`~qdrefine.Mesh.physical_names`.
+- Each point-data field is a ``$NodeData`` view, each cell-data field an ``$ElementData``
+  view over the triangles, named by the field. Gmsh views have 1, 3 or 9 components and
+  hold doubles: other widths are padded with zeros, and a ``$QdrefineData`` section (which
+  Gmsh and meshio skip) records each field's shape and dtype so that qdrefine reads the field
+  back as it was. Integer data beyond 2**53 cannot be stored as doubles and is refused.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._core import (
+    RawMesh,
+    atomic_path,
+    check_readable,
+    from_blocks,
+    mesh_data,
+    read_bytes,
+    split_data,
+)
+from ._text import BadNumber, format_floats, int_lines, parse, parse_table
+
+__all__ = ["read", "write", "VERSIONS", "GmshError"]
+
+#: Versions written (the first is the default).
+VERSIONS = ("4.1", "2.2")
+
+#: Gmsh element types: (meshio's name, nodes per element).
+ELEMENTS: dict[int, tuple[str, int]] = {
+    1: ("line", 2), 2: ("triangle", 3), 3: ("quad", 4), 4: ("tetra", 4), 5: ("hexahedron", 8),
+    6: ("wedge", 6), 7: ("pyramid", 5), 8: ("line3", 3), 9: ("triangle6", 6),
+    10: ("quad9", 9), 11: ("tetra10", 10), 12: ("hexahedron27", 27), 13: ("wedge18", 18),
+    14: ("pyramid14", 14), 15: ("vertex", 1), 16: ("quad8", 8), 17: ("hexahedron20", 20),
+    18: ("wedge15", 15), 19: ("pyramid13", 13), 20: ("triangle9", 9), 21: ("triangle10", 10),
+    22: ("triangle12", 12), 23: ("triangle15", 15), 24: ("triangle15", 15),
+    25: ("triangle21", 21), 26: ("line4", 4), 27: ("line5", 5), 28: ("line6", 6),
+    29: ("tetra20", 20), 30: ("tetra35", 35), 31: ("tetra56", 56), 36: ("quad16", 16),
+    37: ("quad25", 25), 38: ("quad36", 36), 92: ("hexahedron64", 64),
+}
+
+_SECTION = re.compile(rb"\$(\w+)[ \t\r]*\n")
+_NAME = re.compile(r'^\s*(-?\d+)\s+(-?\d+)\s+"(.*)"\s*$')
+_EXACT_INT = 2**53  # integers stored as doubles are exact below this
+
+
+class GmshError(ValueError):
+    """A structural problem of an MSH file; ``where`` is ``"line N"`` or ``"byte N"``."""
+
+
+class _File:
+    """The bytes of an MSH file and a cursor; errors name the line (text) or byte (binary)."""
+
+    def __init__(self, path: Path, data: bytes) -> None:
+        self.path, self.data = path, data
+        self.binary = False
+
+    def where(self, offset: int) -> str:
+        if self.binary:
+            return f"byte {offset}"
+        return f"line {self.line_number(offset)}"
+
+    def line_number(self, offset: int) -> int:
+        return self.data.count(b"\n", 0, offset) + 1
+
+    def error(self, offset: int, message: str) -> GmshError:
+        return GmshError(f"{self.where(offset)}: {message}")
+
+    def end_of(self, name: str, start: int) -> int:
+        """Offset of ``$End<name>`` after ``start`` (text sections)."""
+        end = self.data.find(b"$End" + name.encode(), start)
+        if end < 0:
+            raise self.error(start, f"the file ends inside ${name} (no $End{name})")
+        return end
+
+    def numbers(self, start: int, end: int, dtype: type, what: str) -> NDArray:
+        try:
+            return parse(self.data[start:end], dtype, what)
+        except BadNumber as exc:
+            line = self.data.count(b"\n", 0, start) + exc.line
+            raise GmshError(f"line {line}: expected {exc.what}, got {exc.token!r}") from None
+
+    def line(self, pos: int) -> tuple[str, int]:
+        """The text line at ``pos`` (stripped) and the offset after it."""
+        end = self.data.find(b"\n", pos)
+        if end < 0:
+            end = len(self.data)
+        return self.data[pos:end].decode("utf-8", "replace").strip(), end + 1
+
+    def take(self, pos: int, dtype: np.dtype, count: int, what: str) -> tuple[NDArray, int]:
+        """``count`` binary items of ``dtype`` at ``pos`` (bounded by the file size)."""
+        dtype = np.dtype(dtype)
+        if count < 0 or pos + count * dtype.itemsize > len(self.data):
+            raise self.error(pos, f"the file ends inside {what} ({count} items of "
+                                  f"{dtype.itemsize} bytes announced)")
+        return np.frombuffer(self.data, dtype=dtype, count=count, offset=pos), \
+            pos + count * dtype.itemsize
+
+
+# --------------------------------------------------------------------------------------------
+# reading
+
+
+def read(path: Path) -> RawMesh:
+    """The content of a Gmsh MSH file (2.0-2.2 or 4.1; 4.0 through meshio)."""
+    check_readable(path)
+    data = read_bytes(path)
+    f = _File(path, data)
+    try:
+        return _read(f)
+    except GmshError as exc:
+        raise ValueError(f"{path}: not a readable Gmsh MSH file ({exc})") from None
+
+
+class _Content:
+    def __init__(self) -> None:
+        self.version = ""
+        self.node_tags: NDArray | None = None
+        self.points: NDArray | None = None
+        # (type, physical tag(s), dimension, element tags, nodes) per element block
+        self.blocks: list[tuple[int, object, int, NDArray, NDArray]] = []
+        self.entities: dict[tuple[int, int], int] = {}
+        self.names: dict[tuple[int, int], str] = {}
+        self.node_data: dict[str, tuple[NDArray, NDArray]] = {}
+        self.element_data: dict[str, tuple[NDArray, NDArray]] = {}
+        self.dtypes: dict = {}
+
+
+def _read(f: _File) -> RawMesh:
+    c = _Content()
+    pos = 0
+    data = f.data
+    while True:
+        while pos < len(data) and data[pos:pos + 1] in (b"\n", b"\r", b" ", b"\t"):
+            pos += 1
+        if pos >= len(data):
+            break
+        m = _SECTION.match(data, pos)
+        if m is None:
+            if not c.version:
+                raise f.error(pos, "no $MeshFormat section at the start")
+            raise f.error(pos, f"expected a section ($Name), got {f.line(pos)[0][:40]!r}")
+        name = m.group(1).decode()
+        start = m.end()
+        if not c.version and name != "MeshFormat":
+            raise f.error(pos, "no $MeshFormat section at the start")
+        handler = _HANDLERS.get(name)
+        if handler is None:
+            end = f.end_of(name, start)
+        else:
+            end = handler(f, c, start)
+        pos = _expect_end(f, name, end)
+        if c.version == "4.0":
+            return _meshio_fallback(f.path)
+    if not c.version:
+        raise f.error(0, "no $MeshFormat section (empty file?)")
+    if c.points is None:
+        raise f.error(len(data), "no $Nodes section")
+    return _assemble(f, c)
+
+
+def _expect_end(f: _File, name: str, pos: int) -> int:
+    data = f.data
+    while pos < len(data) and data[pos:pos + 1] in (b"\n", b"\r", b" ", b"\t"):
+        pos += 1
+    tag = b"$End" + name.encode()
+    if not data.startswith(tag, pos):
+        raise f.error(pos, f"expected $End{name}"
+                           + (" (the file ends early)" if pos >= len(data) else ""))
+    return pos + len(tag)
+
+
+def _mesh_format(f: _File, c: _Content, start: int) -> int:
+    text, pos = f.line(start)
+    words = text.split()
+    if len(words) != 3 or words[2] != "8" or words[1] not in ("0", "1"):
+        raise f.error(start, f"expected 'version file-type 8' after $MeshFormat, got {text!r}")
+    version = words[0]
+    if version not in ("2", "2.0", "2.1", "2.2", "4", "4.0", "4.1"):
+        raise f.error(start, f"MSH version {version} is not supported (2.2 and 4.1 are)")
+    c.version = "4.0" if version in ("4", "4.0") else ("4.1" if version == "4.1" else "2.2")
+    if words[1] == "1":
+        f.binary = True
+        one, pos = f.take(pos, np.int32, 1, "$MeshFormat")
+        if one[0] != 1:
+            raise f.error(pos - 4, "big-endian binary MSH files are not supported")
+    return pos
+
+
+def _physical_names(f: _File, c: _Content, start: int) -> int:
+    end = f.end_of("PhysicalNames", start)
+    lines = f.data[start:end].decode("utf-8", "replace").splitlines()
+    lines = [x for x in lines if x.strip()]
+    if not lines or not lines[0].strip().isdigit():
+        raise f.error(start, "expected the number of physical names")
+    count = int(lines[0])
+    if count != len(lines) - 1:
+        raise f.error(start, f"$PhysicalNames announces {count} names, holds {len(lines) - 1}")
+    for i, line in enumerate(lines[1:]):
+        m = _NAME.match(line)
+        if m is None:
+            raise f.error(start, f"physical name {i + 1}: expected 'dim tag \"name\"', got "
+                                 f"{line.strip()[:60]!r}")
+        c.names[(int(m.group(1)), int(m.group(2)))] = m.group(3)
+    return end
+
+
+def _entities(f: _File, c: _Content, start: int) -> int:
+    if c.version != "4.1":
+        return f.end_of("Entities", start)
+    if f.binary:
+        head, pos = f.take(start, np.uint64, 4, "$Entities")
+        for dim, count in enumerate(head.tolist()):
+            for _ in range(int(count)):
+                tag, pos = f.take(pos, np.int32, 1, "$Entities")
+                _, pos = f.take(pos, np.float64, 3 if dim == 0 else 6, "$Entities")
+                n_phys, pos = f.take(pos, np.uint64, 1, "$Entities")
+                phys, pos = f.take(pos, np.int32, int(n_phys[0]), "$Entities")
+                c.entities[(dim, int(tag[0]))] = int(phys[0]) if len(phys) else 0
+                if dim > 0:
+                    n_b, pos = f.take(pos, np.uint64, 1, "$Entities")
+                    _, pos = f.take(pos, np.int32, int(n_b[0]), "$Entities")
+        return pos
+    end = f.end_of("Entities", start)
+    v = f.numbers(start, end, np.float64, "a number")
+    i = 4
+    try:
+        for dim in range(4):
+            for _ in range(int(v[dim])):
+                tag = int(v[i])
+                i += 4 if dim == 0 else 7
+                n_phys = int(v[i])
+                phys = v[i + 1:i + 1 + n_phys]
+                i += 1 + n_phys
+                c.entities[(dim, tag)] = int(phys[0]) if n_phys else 0
+                if dim > 0:
+                    i += 1 + int(v[i])
+    except (IndexError, ValueError, OverflowError):
+        raise f.error(start, "$Entities ends early") from None
+    return end
+
+
+def _nodes(f: _File, c: _Content, start: int) -> int:
+    if c.version == "2.2":
+        return _nodes22(f, c, start)
+    if f.binary:
+        head, pos = f.take(start, np.uint64, 4, "$Nodes")
+        n_blocks, n_nodes = int(head[0]), int(head[1])
+        if n_nodes * 32 > len(f.data):
+            raise f.error(start, f"$Nodes announces {n_nodes} nodes, more than the file holds")
+        tags, coords = [], []
+        for _ in range(n_blocks):
+            b, pos = f.take(pos, np.int32, 3, "$Nodes")
+            count, pos = f.take(pos, np.uint64, 1, "$Nodes")
+            n = int(count[0])
+            t, pos = f.take(pos, np.uint64, n, "$Nodes")
+            width = 3 + (int(b[0]) if b[2] else 0)
+            x, pos = f.take(pos, np.float64, n * width, "$Nodes")
+            tags.append(t.astype(np.int64))
+            coords.append(x.reshape(n, width)[:, :3])
+        end = pos
+    else:
+        end = f.end_of("Nodes", start)
+        fast = _nodes41_by_lines(f, start, end)
+        if fast is not None:
+            c.node_tags, c.points = fast
+            return end
+        v = f.numbers(start, end, np.float64, "a number")
+        if len(v) < 4:
+            raise f.error(start, "$Nodes ends early")
+        n_blocks, n_nodes = int(v[0]), int(v[1])
+        i = 4
+        tags, coords = [], []
+        for _ in range(n_blocks):
+            if i + 4 > len(v):
+                raise f.error(end, "$Nodes ends early (fewer node blocks than announced)")
+            dim, parametric, n = int(v[i]), int(v[i + 2]), int(v[i + 3])
+            i += 4
+            width = 3 + (dim if parametric else 0)
+            if n < 0 or i + n * (1 + width) > len(v):
+                raise f.error(end, f"$Nodes ends early (a block announces {n} nodes)")
+            tags.append(v[i:i + n])
+            i += n
+            coords.append(v[i:i + n * width].reshape(n, width)[:, :3])
+            i += n * width
+        if i != len(v):
+            raise f.error(end, f"$Nodes holds {len(v) - i} numbers more than announced")
+    c.node_tags = _tag_array(f, np.concatenate(tags) if tags else np.empty(0), start, "node")
+    c.points = np.concatenate(coords) if coords else np.empty((0, 3))
+    del n_nodes  # Gmsh itself writes totals that differ from the blocks: the blocks count
+    return end
+
+
+def _line_index(data: bytes, start: int, end: int):
+    """Offsets of the lines of ``data[start:end]`` and ``lines(first, count) -> bytes``."""
+    newlines = np.flatnonzero(np.frombuffer(data, np.uint8, end - start, start) == 10) + start
+    line_start = np.concatenate([[start], newlines + 1])
+
+    def lines(first: int, count: int) -> bytes:
+        if first + count >= len(line_start):
+            raise IndexError
+        return data[line_start[first]:line_start[first + count]]
+
+    return line_start, lines
+
+
+def _elements41_by_lines(f: _File, c: _Content, start: int, end: int) -> bool:
+    """Text ``$Elements`` of MSH 4.1 with one element per line: each block parsed as a table
+    (the fast path). False (and nothing stored) when the layout differs."""
+    line_start, lines = _line_index(f.data, start, end)
+    blocks = []
+    try:
+        n_blocks = int(lines(0, 1).split()[0])
+        at = 1
+        for _ in range(n_blocks):
+            dim, ent, typ, n = (int(x) for x in lines(at, 1).split())
+            if typ not in ELEMENTS:
+                return False
+            npe = ELEMENTS[typ][1]
+            rows = parse_table(lines(at + 1, n), 1 + npe, dtype=np.int64) if n else \
+                np.empty((0, 1 + npe), np.int64)
+            if rows.shape != (n, 1 + npe):
+                return False
+            blocks.append((typ, c.entities.get((dim, ent), 0), dim, rows[:, 0], rows[:, 1:]))
+            at += 1 + n
+        if f.data[line_start[at]:end].strip():
+            return False
+    except (IndexError, ValueError):
+        return False
+    c.blocks.extend(blocks)
+    return True
+
+
+def _nodes41_by_lines(f: _File, start: int, end: int
+                      ) -> tuple[NDArray[np.int64], NDArray[np.float64]] | None:
+    """Text ``$Nodes`` of MSH 4.1 laid out one item per line (as Gmsh writes it): each
+    block's tags parsed as integers and its coordinates as a table (the fast path). ``None``
+    when the layout differs; the general parser then reads (and names any bad line)."""
+    data = f.data
+    line_start, lines = _line_index(data, start, end)
+    try:
+        head = lines(0, 1).split()
+        n_blocks = int(head[0])
+        at = 1
+        tags, coords = [], []
+        for _ in range(n_blocks):
+            dim, _, parametric, n = (int(x) for x in lines(at, 1).split())
+            width = 3 + (dim if parametric else 0)
+            t = parse(lines(at + 1, n), np.int64) if n else np.empty(0, np.int64)
+            x = parse_table(lines(at + 1 + n, n), width) if n else np.empty((0, width))
+            if len(t) != n or x.shape != (n, width):
+                return None
+            tags.append(t)
+            coords.append(x[:, :3])
+            at += 1 + 2 * n
+        if data[line_start[at]:end].strip():
+            return None
+    except (IndexError, ValueError):
+        return None
+    return (np.concatenate(tags) if tags else np.empty(0, np.int64),
+            np.concatenate(coords) if coords else np.empty((0, 3)))
+
+
+def _tag_array(f: _File, tags: NDArray, start: int, what: str) -> NDArray[np.int64]:
+    if tags.dtype.kind == "f":
+        if len(tags) and not ((tags == np.round(tags)) & (np.abs(tags) < _EXACT_INT)).all():
+            raise f.error(start, f"{what} tags must be integers")
+    return tags.astype(np.int64)
+
+
+def _nodes22(f: _File, c: _Content, start: int) -> int:
+    text, pos = f.line(start)
+    if not text.isdigit():
+        raise f.error(start, f"expected the number of nodes, got {text[:40]!r}")
+    n = int(text)
+    if f.binary:
+        rec = np.dtype([("tag", np.int32), ("xyz", np.float64, 3)])
+        nodes, end = f.take(pos, rec, n, "$Nodes")
+        c.node_tags = nodes["tag"].astype(np.int64)
+        c.points = np.array(nodes["xyz"])
+        return end
+    end = f.end_of("Nodes", pos)
+    try:
+        v = parse_table(f.data[pos:end], 4)
+    except BadNumber:
+        v = f.numbers(pos, end, np.float64, "a number").reshape(-1, 1)  # names the line
+    if v.shape != (n, 4):
+        raise f.error(start, f"$Nodes announces {n} nodes (4 numbers each), holds "
+                             f"{v.size} numbers")
+    c.node_tags = _tag_array(f, v[:, 0], start, "node")
+    c.points = np.ascontiguousarray(v[:, 1:])
+    return end
+
+
+def _elements(f: _File, c: _Content, start: int) -> int:
+    if c.version == "2.2":
+        return _elements22(f, c, start)
+    if f.binary:
+        head, pos = f.take(start, np.uint64, 4, "$Elements")
+        for _ in range(int(head[0])):
+            b, pos = f.take(pos, np.int32, 3, "$Elements")
+            count, pos = f.take(pos, np.uint64, 1, "$Elements")
+            kind = _kind(f, int(b[2]), pos)
+            n, npe = int(count[0]), ELEMENTS[kind][1]
+            v, pos = f.take(pos, np.uint64, n * (1 + npe), "$Elements")
+            v = v.reshape(n, 1 + npe).view(np.int64)  # tags < 2**63
+            c.blocks.append((kind, c.entities.get((int(b[0]), int(b[1])), 0), int(b[0]),
+                             v[:, 0], v[:, 1:]))
+        return pos
+    end = f.end_of("Elements", start)
+    if _elements41_by_lines(f, c, start, end):
+        return end
+    v = f.numbers(start, end, np.int64, "an integer")
+    if len(v) < 4:
+        raise f.error(start, "$Elements ends early")
+    i = 4
+    for _ in range(int(v[0])):
+        if i + 4 > len(v):
+            raise f.error(end, "$Elements ends early (fewer element blocks than announced)")
+        dim, ent, typ, n = (int(x) for x in v[i:i + 4])
+        i += 4
+        kind = _kind(f, typ, start)
+        npe = ELEMENTS[kind][1]
+        if n < 0 or i + n * (1 + npe) > len(v):
+            raise f.error(end, f"$Elements ends early (a block announces {n} elements)")
+        rows = v[i:i + n * (1 + npe)].reshape(n, 1 + npe)
+        i += n * (1 + npe)
+        c.blocks.append((kind, c.entities.get((dim, ent), 0), dim, rows[:, 0], rows[:, 1:]))
+    if i != len(v):
+        raise f.error(end, f"$Elements holds {len(v) - i} numbers more than announced")
+    return end
+
+
+def _kind(f: _File, typ: int, pos: int) -> int:
+    if typ not in ELEMENTS:
+        raise f.error(pos, f"unknown element type {typ}")
+    return typ
+
+
+def _elements22(f: _File, c: _Content, start: int) -> int:
+    text, pos = f.line(start)
+    if not text.isdigit():
+        raise f.error(start, f"expected the number of elements, got {text[:40]!r}")
+    total = int(text)
+    if f.binary:
+        done = 0
+        while done < total:
+            h, pos = f.take(pos, np.int32, 3, "$Elements")
+            typ, n, ntags = (int(x) for x in h)
+            kind = _kind(f, typ, pos - 12)
+            npe = ELEMENTS[kind][1]
+            if n <= 0 or ntags < 0 or done + n > total:
+                raise f.error(pos - 12, f"bad element block header ({typ}, {n}, {ntags})")
+            v, pos = f.take(pos, np.int32, n * (1 + ntags + npe), "$Elements")
+            v = v.reshape(n, 1 + ntags + npe).astype(np.int64)
+            phys = v[:, 1] if ntags else np.zeros(n, np.int64)
+            c.blocks.append((kind, phys, -1, v[:, 0], v[:, 1 + ntags:]))
+            done += n
+        return pos
+    end = f.end_of("Elements", pos)
+    section = f.data[pos:end]
+    v = f.numbers(pos, end, np.int64, "an integer")
+    # the line of every number, from the bytes: numbers per line give each element's row
+    b = np.frombuffer(section, dtype=np.uint8)
+    space = (b == 32) | (b == 9) | (b == 13) | (b == 10)
+    first = ~space & np.concatenate([[True], space[:-1]])
+    # line (0-based, from pos) of each number
+    line = np.searchsorted(np.flatnonzero(b == 10), np.flatnonzero(first))
+    if len(line) != len(v):
+        raise f.error(pos, "unreadable numbers in $Elements")
+    cut = np.flatnonzero(np.diff(line)) + 1  # ``line`` is sorted: runs are lines
+    lines = line[np.concatenate([[0], cut])] if len(line) else line
+    counts = np.diff(np.concatenate([[0], cut, [len(line)]])) if len(line) else line
+    if len(lines) != total:
+        raise f.error(start, f"$Elements announces {total} elements, holds {len(lines)} lines")
+    if total == 0:
+        return end
+    off = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    bad = counts < 3
+    if not bad.any():
+        typ, ntags = v[off + 1], v[off + 2]
+        npe = np.zeros(len(typ), np.int64)
+        known = np.isin(typ, list(ELEMENTS))
+        if not known.all():
+            k = int(np.flatnonzero(~known)[0])
+            raise GmshError(f"line {f.line_number(pos) + int(lines[k])}: "
+                            f"unknown element type {int(typ[k])}")
+        table = np.zeros(max(ELEMENTS) + 1, np.int64)
+        table[list(ELEMENTS)] = [n for _, n in ELEMENTS.values()]
+        npe = table[typ]
+        bad = (ntags < 0) | (counts != 3 + ntags + npe)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise GmshError(f"line {f.line_number(pos) + int(lines[k])}: an element "
+                        "line with the wrong number of integers for its type")
+    for t in np.unique(typ).tolist():
+        rows = np.flatnonzero(typ == t)
+        first_node = off[rows] + 3 + ntags[rows]
+        nodes = v[first_node[:, None] + np.arange(ELEMENTS[t][1])]
+        phys = np.where(ntags[rows] > 0, v[np.minimum(off[rows] + 3, len(v) - 1)], 0)
+        c.blocks.append((t, phys, -1, v[off[rows]], nodes))
+    return end
+
+
+def _data_section(kind: str):
+    def handler(f: _File, c: _Content, start: int) -> int:
+        pos = start
+        header: list[list[str]] = []
+        for _ in range(3):
+            text, pos = f.line(pos)
+            if not text.lstrip("-").isdigit():
+                raise f.error(pos, f"${kind}: expected a number of tags, got {text[:40]!r}")
+            values = []
+            for _ in range(int(text)):
+                value, pos = f.line(pos)
+                values.append(value)
+            header.append(values)
+        strings, _, ints = header
+        try:
+            components, count = int(ints[1]), int(ints[2])
+        except (IndexError, ValueError):
+            raise f.error(start, f"${kind}: expected 3 integer tags (step, components, "
+                                 "count)") from None
+        name = strings[0].strip('"') if strings else kind
+        if components <= 0 or count < 0:
+            raise f.error(start, f"${kind}: bad number of components or values")
+        if f.binary:
+            rec = np.dtype([("tag", np.int32), ("v", np.float64, (components,))])
+            values, end = f.take(pos, rec, count, f"${kind}")
+            tags, v = values["tag"].astype(np.int64), np.array(values["v"])
+        else:
+            end = f.end_of(kind, pos)
+            numbers = f.numbers(pos, end, np.float64, "a number")
+            if len(numbers) != count * (1 + components):
+                raise f.error(start, f"${kind} announces {count} values of {components} "
+                                     f"components, holds {len(numbers)} numbers")
+            numbers = numbers.reshape(count, 1 + components)
+            tags = _tag_array(f, numbers[:, 0], start, "node" if kind == "NodeData"
+                              else "element")
+            v = np.ascontiguousarray(numbers[:, 1:])
+        target = c.node_data if kind == "NodeData" else c.element_data
+        target[name] = (tags, v)
+        return end
+    return handler
+
+
+def _qdrefine_data(f: _File, c: _Content, start: int) -> int:
+    end = f.end_of("QdrefineData", start)
+    try:
+        c.dtypes = json.loads(f.data[start:end].decode())
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        raise f.error(start, "$QdrefineData is not JSON") from None
+    if not isinstance(c.dtypes, dict):
+        c.dtypes = {}
+    return end
+
+
+_HANDLERS = {
+    "MeshFormat": _mesh_format, "PhysicalNames": _physical_names, "Entities": _entities,
+    "Nodes": _nodes, "Elements": _elements, "NodeData": _data_section("NodeData"),
+    "ElementData": _data_section("ElementData"), "QdrefineData": _qdrefine_data,
+}
+
+
+def _is_range(tags: NDArray[np.int64]) -> bool:
+    """Whether ``tags`` is ``1, 2, ..., len(tags)`` (what Gmsh and qdrefine write)."""
+    n = len(tags)
+    return n == 0 or (tags[0] == 1 and tags[-1] == n and bool((np.diff(tags) == 1).all()))
+
+
+def _first_duplicate(tags: NDArray[np.int64]) -> int | None:
+    if _is_range(tags):
+        return None
+    s = np.sort(tags)
+    same = np.flatnonzero(s[1:] == s[:-1])
+    return int(s[same[0]]) if len(same) else None
+
+
+def _rows_of(tags: NDArray[np.int64], query: NDArray[np.int64], contiguous: bool | None = None
+             ) -> NDArray[np.int64]:
+    """Row of each ``query`` tag in ``tags`` (-1 where absent); ``tags`` unique. ``query``
+    keeps its shape."""
+    n = len(tags)
+    if n == 0:
+        return np.full(query.shape, -1, np.int64)
+    if contiguous if contiguous is not None else _is_range(tags):
+        rows = np.subtract(query, 1, dtype=np.int64)
+        if len(rows) and (rows.min() < 0 or rows.max() >= n):
+            rows[(rows < 0) | (rows >= n)] = -1
+        return rows
+    order = np.argsort(tags, kind="stable")
+    sorted_tags = tags[order]
+    pos = np.minimum(np.searchsorted(sorted_tags, query), n - 1)
+    found = sorted_tags[pos] == query
+    return np.where(found, order[pos], -1)
+
+
+def _assemble(f: _File, c: _Content) -> RawMesh:
+    tags = c.node_tags
+    twice = _first_duplicate(tags)
+    if twice is not None:
+        raise GmshError(f"node tag {twice} is given twice in $Nodes")
+    contiguous = _is_range(tags)
+    blocks, block_tags, element_ids = [], [], []
+    for kind, phys, _dim, ids, nodes in c.blocks:
+        rows = _rows_of(tags, nodes, contiguous)
+        if (rows < 0).any():
+            k = np.argwhere(rows < 0)[0]
+            raise GmshError(f"element {int(ids[k[0]])} uses node {int(nodes[k[0], k[1]])}, "
+                            "which is not in $Nodes")
+        name = ELEMENTS[kind][0]
+        blocks.append((name, rows))
+        block_tags.append(np.broadcast_to(np.asarray(phys, np.int64), (len(rows),)))
+        element_ids.append(ids)
+    # sort each kind by element tag (keeps the order of files written grouped by entity)
+    by_kind: dict[str, list[int]] = {}
+    for i, (name, _) in enumerate(blocks):
+        by_kind.setdefault(name, []).append(i)
+    merged, merged_tags, tri_ids = [], [], np.empty(0, np.int64)
+    for name, members in by_kind.items():
+        rows = np.concatenate([blocks[i][1] for i in members])
+        tg = np.concatenate([block_tags[i] for i in members])
+        ids = np.concatenate([element_ids[i] for i in members])
+        if len(ids) > 1 and (np.diff(ids) < 0).any():
+            order = np.argsort(ids, kind="stable")
+            rows, tg, ids = rows[order], tg[order], ids[order]
+        merged.append((name, rows))
+        merged_tags.append(tg)
+        if name == "triangle":
+            tri_ids = ids
+    raw = from_blocks(f.path, c.points, merged, merged_tags)
+    raw.physical_names = dict(c.names)
+    point_data = {name: _field(c, "point", name, v, _rows_of(tags, t, contiguous), len(tags))
+                  for name, (t, v) in c.node_data.items()}
+    cell_data = {}
+    if len(tri_ids) and c.element_data:
+        if _first_duplicate(tri_ids) is not None:
+            raise GmshError(f"element tag {_first_duplicate(tri_ids)} is given to two "
+                            "triangles")
+        for name, (t, v) in c.element_data.items():
+            cell_data[name] = _field(c, "cell", name, v, _rows_of(tri_ids, t), len(tri_ids))
+    split_data(raw, point_data, cell_data)
+    return raw
+
+
+def _field(c: _Content, where: str, name: str, values: NDArray, rows: NDArray, size: int
+           ) -> NDArray:
+    """One field: ``values (k, components)`` at ``rows`` (-1: not a point / triangle) spread
+    over ``size`` rows (NaN where the file gives none), restored to the shape and dtype that
+    ``$QdrefineData`` records."""
+    out = np.full((size, values.shape[1]), np.nan)
+    ok = rows >= 0
+    out[rows[ok]] = values[ok]
+    spec = c.dtypes.get(where, {}).get(name) if isinstance(c.dtypes.get(where), dict) else None
+    if isinstance(spec, dict):
+        try:
+            shape, dtype = tuple(int(s) for s in spec["shape"]), np.dtype(spec["dtype"])
+            width = int(np.prod(shape))
+            out = out[:, :width]
+            if dtype.kind == "f" or (dtype.kind in "iub" and np.isfinite(out).all()):
+                out = out.astype(dtype)
+            return out.reshape((size, *shape))
+        except (KeyError, TypeError, ValueError):
+            pass
+    return out[:, 0] if out.shape[1] == 1 else out
+
+
+def _meshio_fallback(path: Path) -> RawMesh:
+    from .meshio_formats import read_with_meshio
+
+    return read_with_meshio(path, "gmsh", "Gmsh MSH")
+
+
+# --------------------------------------------------------------------------------------------
+# writing
+
+
+def write(path: Path, mesh, *, binary: bool = False, version: str = "4.1") -> None:
+    """Write ``mesh`` as Gmsh MSH ``version`` (``"4.1"`` or ``"2.2"``), text or binary."""
+    if version not in VERSIONS:
+        raise ValueError(f"{path}: Gmsh MSH version must be one of {', '.join(VERSIONS)}, got "
+                         f"{version!r}")
+    point_data, cell_data = mesh_data(mesh)
+    sections = _data_sections(path, mesh, point_data, cell_data, binary)
+    with atomic_path(path) as tmp, open(tmp, "wb") as out:
+        out.write(f"$MeshFormat\n{version} {int(binary)} 8\n".encode())
+        if binary:
+            out.write(np.array([1], np.int32).tobytes() + b"\n")
+        out.write(b"$EndMeshFormat\n")
+        if mesh.physical_names:
+            names = sorted(mesh.physical_names.items())
+            out.write(f"$PhysicalNames\n{len(names)}\n".encode())
+            for (dim, tag), name in names:
+                out.write(f'{dim} {tag} "{name}"\n'.encode())
+            out.write(b"$EndPhysicalNames\n")
+        if version == "4.1":
+            _write41(out, mesh, binary)
+        else:
+            _write22(out, mesh, binary)
+        for part in sections:
+            out.write(part)
+
+
+def _groups(tags: NDArray | None, n: int) -> list[tuple[int, NDArray[np.int64]]]:
+    """``(tag value, rows)`` for each distinct tag, in increasing tag order (rows in order)."""
+    if tags is None:
+        return [(0, np.arange(n, dtype=np.int64))] if n else []
+    order = np.argsort(tags, kind="stable")
+    values, starts = np.unique(tags[order], return_index=True)
+    ends = np.append(starts[1:], n)
+    return [(int(v), order[s:e]) for v, s, e in zip(values, starts, ends, strict=True)]
+
+
+def _write41(out, mesh, binary: bool) -> None:
+    n, m = mesh.n_points, mesh.n_triangles
+    k = 0 if mesh.edges is None else len(mesh.edges)
+    surfaces = _groups(mesh.cell_tags, m)
+    curves = _groups(mesh.edge_tags, k) if k else []
+    p = np.asarray(mesh.points)
+    box = [p[:, 0].min(), p[:, 1].min(), 0.0, p[:, 0].max(), p[:, 1].max(), 0.0] if n \
+        else [0.0] * 6
+    # entities: one curve per edge tag, one surface per cell tag (physical tag = the tag)
+    out.write(b"$Entities\n")
+    if binary:
+        out.write(np.array([0, len(curves), len(surfaces), 0], np.uint64).tobytes())
+        for groups in (curves, surfaces):
+            for i, (tag, _) in enumerate(groups):
+                phys = [tag]
+                out.write(np.array([i + 1], np.int32).tobytes() + np.array(box).tobytes()
+                          + np.array([len(phys)], np.uint64).tobytes()
+                          + np.array(phys, np.int32).tobytes()
+                          + np.array([0], np.uint64).tobytes())
+        out.write(b"\n")
+    else:
+        out.write(f"0 {len(curves)} {len(surfaces)} 0\n".encode())
+        bbox = " ".join(repr(float(x)) for x in box)
+        for groups in (curves, surfaces):
+            for i, (tag, _) in enumerate(groups):
+                phys = f"1 {tag}"
+                out.write(f"{i + 1} {bbox} {phys} 0\n".encode())
+    out.write(b"$EndEntities\n$Nodes\n")
+    xyz = np.zeros((n, 3))
+    xyz[:, :2] = p
+    if binary:
+        out.write(np.array([1, n, 1, n], np.uint64).tobytes())
+        out.write(np.array([2, 1, 0], np.int32).tobytes() + np.array([n], np.uint64).tobytes())
+        out.write(np.arange(1, n + 1, dtype=np.uint64).tobytes())
+        out.write(xyz.tobytes())
+        out.write(b"\n")
+    else:
+        out.write(f"1 {n} 1 {n}\n2 1 0 {n}\n".encode())
+        for piece in int_lines(np.arange(1, n + 1)):
+            out.write(piece)
+        for piece in format_floats(p, " 0"):
+            out.write(piece)
+    out.write(b"$EndNodes\n$Elements\n")
+    blocks = [(2, i + 1, 2, rows, 0, np.asarray(mesh.triangles), len(surfaces) == 1)
+              for i, (_, rows) in enumerate(surfaces)]
+    blocks += [(1, i + 1, 1, rows, m, np.asarray(mesh.edges), len(curves) == 1)
+               for i, (_, rows) in enumerate(curves)]
+    total = m + k
+    if binary:
+        out.write(np.array([len(blocks), total, 1, total], np.uint64).tobytes())
+    else:
+        out.write(f"{len(blocks)} {total} 1 {total}\n".encode())
+    for dim, ent, typ, rows, first, cells, everything in blocks:
+        block = _element_rows(rows, first, cells, everything)
+        if binary:
+            out.write(np.array([dim, ent, typ], np.int32).tobytes()
+                      + np.array([len(block)], np.uint64).tobytes())
+            out.write(memoryview(block.view(np.uint64).reshape(-1)))
+        else:
+            out.write(f"{dim} {ent} {typ} {len(block)}\n".encode())
+            for piece in int_lines(block):
+                out.write(piece)
+    out.write(b"\n$EndElements\n" if binary else b"$EndElements\n")
+
+
+def _element_rows(rows: NDArray[np.int64], first: int, cells: NDArray, everything: bool
+                  ) -> NDArray[np.int64]:
+    """``(k, 1 + nodes) int64``: element tag ``first + row + 1`` and 1-based nodes of the
+    ``cells`` at ``rows`` (all of them, without a gather, when ``everything``)."""
+    block = np.empty((len(rows), 1 + cells.shape[1]), np.int64)
+    block[:, 0] = rows
+    block[:, 0] += first + 1
+    block[:, 1:] = cells if everything else cells[rows]
+    block[:, 1:] += 1
+    return block
+
+
+def _write22(out, mesh, binary: bool) -> None:
+    n, m = mesh.n_points, mesh.n_triangles
+    k = 0 if mesh.edges is None else len(mesh.edges)
+    p = np.asarray(mesh.points)
+    out.write(f"$Nodes\n{n}\n".encode())
+    if binary:
+        rec = np.empty(n, dtype=[("tag", np.int32), ("xyz", np.float64, 3)])
+        rec["tag"] = np.arange(1, n + 1)
+        rec["xyz"][:, :2] = p
+        rec["xyz"][:, 2] = 0
+        out.write(rec.tobytes() + b"\n")
+    else:
+        for piece in format_floats(np.column_stack([np.arange(1, n + 1), p]), " 0", "%d"):
+            out.write(piece)
+    out.write(b"$EndNodes\n")
+    tri_tags = mesh.cell_tags if mesh.cell_tags is not None else np.zeros(m, np.int64)
+    parts = [(2, np.arange(1, m + 1), tri_tags, np.asarray(mesh.triangles))]
+    if k:
+        parts.append((1, np.arange(m + 1, m + k + 1), mesh.edge_tags, np.asarray(mesh.edges)))
+    out.write(f"$Elements\n{m + k}\n".encode())
+    for typ, ids, tags, nodes in parts:
+        tags = np.asarray(tags, np.int64)
+        geom = np.where(tags == 0, 1, tags)  # 0 is not a valid elementary entity
+        if binary:
+            out.write(np.array([typ, len(ids), 2], np.int32).tobytes())
+            rows = np.column_stack([ids, tags, geom, nodes + 1])
+            out.write(rows.astype(np.int32).tobytes())
+        else:
+            rows = np.column_stack([ids, np.full(len(ids), typ), np.full(len(ids), 2), tags,
+                                    geom, nodes + 1])
+            for piece in int_lines(rows):
+                out.write(piece)
+    out.write(b"\n$EndElements\n" if binary else b"$EndElements\n")
+
+
+def _data_sections(path: Path, mesh, point_data: dict, cell_data: dict, binary: bool
+                   ) -> list[bytes]:
+    """``$NodeData`` / ``$ElementData`` views and the ``$QdrefineData`` record (checked before
+    the file is opened)."""
+    parts, spec = [], {}
+    for where, kind, fields, first in (("point", "NodeData", point_data, 1),
+                                       ("cell", "ElementData", cell_data, 1)):
+        for name, value in fields.items():
+            a = np.asarray(value)
+            if a.dtype.kind in "iub" and a.size and np.abs(a.astype(np.int64)).max() >= _EXACT_INT:
+                raise ValueError(f"{path}: {where} data {name!r} holds integers beyond 2**53, "
+                                 "which Gmsh's double values cannot hold exactly")
+            if '"' in name or "\n" in name:
+                raise ValueError(f"{path}: {where} data name {name!r} contains a quote or a "
+                                 "line break, which MSH files cannot hold")
+            flat = a.reshape(len(a), -1).astype(np.float64)
+            if where == "cell" and mesh.edges is not None and len(mesh.edges):
+                # values for the line elements too (0), as meshio expects one per element
+                flat = np.concatenate([flat, np.zeros((len(mesh.edges), flat.shape[1]))])
+            width = flat.shape[1]
+            comps = 1 if width == 1 else (3 if width <= 3 else 9 if width <= 9 else width)
+            if comps != width:
+                flat = np.column_stack([flat, np.zeros((len(flat), comps - width))])
+            spec.setdefault(where, {})[name] = {"shape": list(a.shape[1:]),
+                                                "dtype": a.dtype.str}
+            head = f'${kind}\n1\n"{name}"\n1\n0\n3\n0\n{comps}\n{len(flat)}\n'.encode()
+            ids = np.arange(first, first + len(flat))
+            if binary:
+                rec = np.empty(len(flat), dtype=[("tag", np.int32), ("v", np.float64, (comps,))])
+                rec["tag"], rec["v"] = ids, flat
+                body = rec.tobytes() + b"\n"
+            else:
+                body = b"".join(format_floats(np.column_stack([ids, flat]), first="%d"))
+            parts.append(head + body + f"$End{kind}\n".encode())
+    if spec:
+        parts.append(b"$QdrefineData\n" + json.dumps(spec).encode() + b"\n$EndQdrefineData\n")
+    return parts

@@ -1,0 +1,166 @@
+"""The long tail of formats through meshio (the only module that imports it, lazily).
+
+VTK legacy, Medit, OFF, OBJ, STL and PLY, plus what the fast readers hand over (MSH 4.0,
+VTU files in encodings other than appended raw / zlib). Tags are the cell data
+``gmsh:physical``, ``medit:ref``, ``tag`` or ``cell_tags`` (first found); VTK legacy files
+also carry point and cell data.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io as io_module
+import warnings
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._core import RawMesh, atomic_path, check_regular, from_blocks, mesh_data, split_data
+
+__all__ = ["read_with_meshio", "write_with_meshio", "TAG_KEYS"]
+
+#: Cell-data names read as tags, in order of preference.
+TAG_KEYS = ("gmsh:physical", "medit:ref", "tag", "cell_tags")
+_WRITE_KEY = {"gmsh": "gmsh:physical", "medit": "medit:ref"}
+_SKIP = {"gmsh:geometrical", "gmsh:dim_tags"}
+
+
+@contextlib.contextmanager
+def quiet_meshio(path: Path) -> Iterator[None]:
+    """Silence meshio's Python warnings and turn what it prints on stderr or stdout into
+    one :class:`UserWarning` naming ``path``."""
+    buffer = io_module.StringIO()
+    with warnings.catch_warnings(), contextlib.redirect_stderr(buffer), \
+            contextlib.redirect_stdout(buffer):
+        warnings.simplefilter("ignore")
+        yield
+    text = " ".join(buffer.getvalue().split())  # only reached on success
+    if text:
+        text = text.removeprefix("Warning:").strip()
+        warnings.warn(f"{path}: meshio: {text}", stacklevel=4)
+
+
+def unreadable(path: Path, name: str, exc: BaseException) -> ValueError:
+    text = str(exc).strip()
+    detail = text.splitlines()[0] if text else ""
+    if isinstance(exc, SystemExit):
+        detail = "unreadable"
+    elif not detail:
+        detail = type(exc).__name__
+    return ValueError(f"{path}: not a readable {name} file ({detail[:200]})")
+
+
+def read_with_meshio(path: Path, meshio_name: str, name: str) -> RawMesh:
+    """The content of ``path`` read by meshio as ``meshio_name``."""
+    check_regular(path)
+    import meshio
+
+    try:
+        with quiet_meshio(path):
+            m = meshio.read(path, file_format=meshio_name)
+    except OSError as exc:
+        raise OSError(f"{path}: {exc.strerror or exc}") from None
+    except (Exception, SystemExit) as exc:  # meshio raises many kinds (even exits)
+        raise unreadable(path, name, exc) from None
+    try:
+        points, blocks, tags, point_data, cell_data = _arrays(m)
+    except (TypeError, ValueError, IndexError, KeyError, AttributeError) as exc:
+        raise unreadable(path, name, exc) from None  # meshio returned malformed data
+    raw = from_blocks(path, points, blocks, tags)
+    if len(raw.triangles):
+        split_data(raw, point_data, cell_data)
+    raw.physical_names = _names(m.field_data)
+    return raw
+
+
+def _names(field_data: dict) -> dict[tuple[int, int], str]:
+    """meshio's ``field_data`` (``name -> [tag, dim]``, as Gmsh and XDMF files give it) as
+    physical names ``(dim, tag) -> name``."""
+    names = {}
+    for name, value in (field_data or {}).items():
+        v = np.asarray(value).ravel()
+        if len(v) == 2 and v.dtype.kind in "iu":
+            names[(int(v[1]), int(v[0]))] = str(name)
+    return names
+
+
+def _arrays(m) -> tuple:
+    """Points ``(N, d) float64``, cell blocks ``(type, (k, nodes) int)``, their tags, point
+    data and the triangles' cell data, converted from meshio's objects (malformed data
+    raises here)."""
+    points = np.asarray(m.points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] not in (2, 3):
+        raise ValueError(f"points must have 2 or 3 coordinates, got shape {points.shape}")
+    key = next((k for k in TAG_KEYS if k in m.cell_data), None)
+    blocks, tags = [], []
+    for i, block in enumerate(m.cells):
+        data = np.asarray(block.data)
+        if block.type in ("triangle", "line"):
+            width = 3 if block.type == "triangle" else 2
+            if data.ndim != 2 or data.shape[1] != width or \
+                    (data.size and not np.issubdtype(data.dtype, np.integer)):
+                raise ValueError(f"malformed {block.type} cells")
+            data = data.astype(np.int64)
+        blocks.append((block.type, data))
+        tags.append(None if key is None else np.asarray(m.cell_data[key][i]).reshape(-1))
+        if tags[-1] is not None and len(tags[-1]) != len(data):
+            raise ValueError(f"{len(tags[-1])} tags for {len(data)} {block.type} cells")
+    point_data = {name: np.asarray(v) for name, v in m.point_data.items()
+                  if np.asarray(v).dtype.kind in "biuf" and len(v) == len(points)}
+    cell_data = {}
+    triangles = [i for i, b in enumerate(m.cells) if b.type == "triangle"]
+    for name, per_block in m.cell_data.items():
+        if name in TAG_KEYS or name in _SKIP or not triangles:
+            continue
+        parts = [np.asarray(per_block[i]) for i in triangles]
+        if all(p.dtype.kind in "biuf" for p in parts):
+            cell_data[name] = np.concatenate(parts)
+    return points, blocks, tags, point_data, cell_data
+
+
+def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: bool,
+                      binary: bool | None, options: dict | None = None) -> None:
+    """Write ``mesh`` with meshio as ``meshio_name`` (tags and data where the format holds
+    them)."""
+    import meshio
+
+    n = mesh.n_points
+    points = np.asarray(mesh.points) if meshio_name == "medit" else \
+        np.column_stack([mesh.points, np.zeros(n)])
+    tris = np.asarray(mesh.triangles)
+    kwargs = dict(options or {})
+    if binary is not None:
+        kwargs["binary"] = binary
+    if not tags:
+        m = meshio.Mesh(points, [("triangle", tris)])
+    else:
+        cells, tag_blocks = [], []
+        k = 0 if mesh.edges is None else len(mesh.edges)
+        if k:
+            cells.append(("line", np.asarray(mesh.edges, dtype=np.int64)))
+            tag_blocks.append(np.asarray(mesh.edge_tags, dtype=np.int64))
+        cells.append(("triangle", tris))
+        cell_tags = mesh.cell_tags if mesh.cell_tags is not None else \
+            np.zeros(len(tris), np.int64)
+        tag_blocks.append(np.asarray(cell_tags, dtype=np.int64))
+        cell_data: dict[str, list[NDArray]] = {_WRITE_KEY.get(meshio_name, "tag"): tag_blocks}
+        point_data: dict[str, NDArray] = {}
+        if data:
+            point_data, tri_data = mesh_data(mesh)
+            point_data = {k: _plain(v) for k, v in point_data.items()}
+            tri_data = {k: _plain(v) for k, v in tri_data.items()}
+            for name, value in tri_data.items():
+                value = np.asarray(value)
+                pad = [np.zeros((k, *value.shape[1:]), value.dtype)] if k else []
+                cell_data[name] = [*pad, value]
+        m = meshio.Mesh(points, cells, point_data=point_data, cell_data=cell_data)
+    with atomic_path(path) as tmp, quiet_meshio(path):
+        meshio.write(tmp, m, file_format=meshio_name, **kwargs)
+
+
+def _plain(value) -> NDArray:
+    """Data as meshio's writers take it: booleans as ``uint8``."""
+    a = np.asarray(value)
+    return a.astype(np.uint8) if a.dtype == bool else a

@@ -1,0 +1,208 @@
+"""Triangle's ``.node`` / ``.ele`` / ``.poly`` files (J. R. Shewchuk's mesh generator).
+
+The first regional attribute of ``.ele`` is the cell tag; the segments of ``.poly`` with a
+nonzero boundary marker are the tagged edges. The three files are written as one set: each
+goes to a temporary file, and they replace their targets only once all three are written.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._core import RawMesh, atomic_paths, read_bytes
+
+__all__ = ["read", "write", "base_of"]
+
+
+class _Lines:
+    """The non-empty lines of a Triangle file, comments (``#``) removed, as numbers."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        try:
+            text = read_bytes(path).decode("utf-8")
+        except UnicodeDecodeError:
+            raise ValueError(f"{path}: not a text file") from None
+        self.rows: list[tuple[int, list[str]]] = []
+        for number, line in enumerate(text.splitlines(), start=1):
+            words = line.split("#", 1)[0].split()
+            if words:
+                self.rows.append((number, words))
+        self.pos = 0
+
+    def error(self, message: str, line: int | None = None) -> ValueError:
+        where = f"{self.path}:{line}" if line is not None else f"{self.path}"
+        return ValueError(f"{where}: {message}")
+
+    def next(self, what: str, min_count: int) -> tuple[int, list[str]]:
+        if self.pos >= len(self.rows):
+            last = self.rows[-1][0] if self.rows else 0
+            raise self.error(f"file ends early: expected {what}", last if last else None)
+        line, words = self.rows[self.pos]
+        self.pos += 1
+        if len(words) < min_count:
+            raise self.error(f"expected {what} ({min_count} numbers), got {len(words)}", line)
+        return line, words
+
+    def ints(self, line: int, words: list[str], what: str) -> list[int]:
+        try:
+            values = [int(w) for w in words]
+        except ValueError:
+            raise self.error(f"expected integers in {what}, got {' '.join(words)!r}",
+                             line) from None
+        if any(abs(v) >= 2**62 for v in values):
+            raise self.error(f"integer too large in {what}: {' '.join(words)!r}", line)
+        return values
+
+    def floats(self, line: int, words: list[str], what: str) -> list[float]:
+        try:
+            return [float(w) for w in words]
+        except ValueError:
+            raise self.error(f"expected numbers in {what}, got {' '.join(words)!r}",
+                             line) from None
+
+    def header(self, what: str, count: int, defaults: tuple[int, ...]) -> list[int]:
+        line, words = self.next(f"the {what} header", 1)
+        values = self.ints(line, words[:count], f"the {what} header")
+        values += list(defaults[len(values):])
+        if values[0] < 0:
+            raise self.error(f"negative count {values[0]} in the {what} header", line)
+        if values[0] > len(self.rows) - self.pos:
+            raise self.error(f"file ends early: the header announces {values[0]} {what} "
+                             f"lines, {len(self.rows) - self.pos} follow", line)
+        return values
+
+    def numbering(self, line: int, index: int, row: int, base: int | None, what: str) -> int:
+        if base is None:
+            if index not in (0, 1):
+                raise self.error(f"{what} numbers must start at 0 or 1, got {index}", line)
+            return index
+        if index != base + row:
+            raise self.error(f"expected {what} {base + row}, got {index}", line)
+        return base
+
+
+def base_of(path: Path) -> Path:
+    return path.with_suffix("")
+
+
+def read(path: Path) -> RawMesh:
+    """The content of ``name.node`` and ``name.ele`` (and ``name.poly`` if it exists)."""
+    base = base_of(path)
+    node_path, ele_path, poly_path = (base.with_suffix(s) for s in (".node", ".ele", ".poly"))
+    points, first, node_lines = _read_node(_Lines(node_path))
+    raw = RawMesh(ele_path, points, np.empty((0, 3), dtype=np.int64), base=first)
+    raw.lines["point"] = (node_path, node_lines)
+    _read_ele(_Lines(ele_path), raw, node_path)
+    if poly_path.exists() and not any(p.kind == "no-triangles" for p in raw.problems):
+        _read_poly(_Lines(poly_path), raw)
+    return raw
+
+
+def _read_node(nodes: _Lines) -> tuple[NDArray, int, NDArray]:
+    n, dim, n_attr, n_mark = nodes.header("vertex", 4, (0, 2, 0, 0))
+    if dim != 2:
+        raise nodes.error(f"dimension must be 2, got {dim}", nodes.rows[0][0])
+    points = np.empty((n, 2))
+    lines = np.empty(n, dtype=np.int64)
+    first = None
+    for i in range(n):
+        line, words = nodes.next(f"vertex {i + 1} of {n}", 3)
+        idx = nodes.ints(line, words[:1], "the vertex number")[0]
+        first = nodes.numbering(line, idx, i, first, "vertex")
+        points[i] = nodes.floats(line, words[1:3], "the coordinates")
+        lines[i] = line
+    return points, 0 if first is None else first, lines
+
+
+def _read_ele(eles: _Lines, raw: RawMesh, node_path: Path) -> None:
+    m, per, n_tattr = eles.header("triangle", 3, (0, 3, 0))
+    if per not in (3, 6):
+        raise eles.error(f"nodes per triangle must be 3 or 6, got {per}", eles.rows[0][0])
+    triangles = np.empty((m, 3), dtype=np.int64)
+    tags = np.empty(m, dtype=np.int64) if n_tattr > 0 else None
+    lines = np.empty(m, dtype=np.int64)
+    tri_first = None
+    for i in range(m):
+        line, words = eles.next(f"triangle {i + 1} of {m}", 1 + per + n_tattr)
+        idx = eles.ints(line, words[:1], "the triangle number")[0]
+        tri_first = eles.numbering(line, idx, i, tri_first, "triangle")
+        triangles[i] = eles.ints(line, words[1:4], "the triangle's vertices")
+        lines[i] = line
+        if tags is not None:
+            attr = eles.floats(line, words[1 + per:2 + per], "the regional attribute")[0]
+            if not np.isfinite(attr) or attr != int(attr) or abs(attr) >= 2**62:
+                raise eles.error(f"the regional attribute {words[1 + per]} is not an integer "
+                                 "tag", line)
+            tags[i] = int(attr)
+    if m == 0:
+        raw.problem("no-triangles", "holds no triangles", 0)
+        return
+    if tri_first is not None and tri_first != raw.base:
+        raise eles.error(f"triangles are numbered from {tri_first} but the vertices of "
+                         f"{node_path.name} from {raw.base}", eles.rows[1][0])
+    raw.lines["triangle"] = (eles.path, lines)
+    n, first = len(raw.points), raw.base
+    bad = ((triangles < first) | (triangles >= first + n)).any(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        v = next(int(v) for v in triangles[i] if not first <= v < first + n)
+        raw.problem("index-range", f"vertex {v} is not in {node_path.name} (vertices "
+                    f"{first}..{first + n - 1})", int(bad.sum()), triangle=i + first,
+                    vertices=triangles[i].tolist())
+    raw.triangles = triangles - first
+    raw.cell_tags = tags if tags is not None and tags.any() else None
+
+
+def _read_poly(poly: _Lines, raw: RawMesh) -> None:
+    """Marked segments become the tagged edges of ``raw``; the lines are kept."""
+    points, first = raw.points, raw.base
+    n_pts, dim, n_attr, n_mark = poly.header("vertex", 4, (0, 2, 0, 0))
+    for i in range(n_pts):
+        line, words = poly.next(f"vertex {i + 1} of {n_pts}", 3)
+        xy = poly.floats(line, words[1:3], "the coordinates")
+        if i >= len(points) or tuple(points[i]) != tuple(xy):
+            raise poly.error(f"vertex {i + first} differs from the .node file's", line)
+    k, k_mark = poly.header("segment", 2, (0, 0))
+    rows = []
+    for i in range(k):
+        line, words = poly.next(f"segment {i + 1} of {k}", 3 + (k_mark > 0))
+        values = poly.ints(line, words[:3 + (k_mark > 0)], "the segment")
+        marker = values[3] if k_mark > 0 else 0
+        if marker != 0:
+            rows.append((values[1] - first, values[2] - first, line, marker))
+    if not rows:
+        return
+    data = np.array(rows, dtype=np.int64)
+    raw.lines["edge"] = (poly.path, data[:, 2])
+    raw.edges, raw.edge_tags = data[:, :2], data[:, 3]
+
+
+def write(path: Path, mesh, *, binary: bool = False) -> None:  # noqa: ARG001
+    """Write ``name.node``, ``name.ele`` and ``name.poly`` as one set."""
+    base = base_of(path)
+    n, m = mesh.n_points, mesh.n_triangles
+    targets = [base.with_suffix(s) for s in (".node", ".ele", ".poly")]
+    with atomic_paths(targets) as (node, ele, poly):
+        with open(node, "w") as f:
+            f.write(f"# written by qdrefine\n{n} 2 0 0\n")
+            np.savetxt(f, np.column_stack([np.arange(n), mesh.points]), fmt="%d %.17g %.17g")
+        with open(ele, "w") as f:
+            t = np.asarray(mesh.triangles, dtype=np.int64)
+            if mesh.cell_tags is None:
+                f.write(f"{m} 3 0\n")
+                np.savetxt(f, np.column_stack([np.arange(m), t]), fmt="%d")
+            else:
+                f.write(f"{m} 3 1\n")
+                np.savetxt(f, np.column_stack([np.arange(m), t, mesh.cell_tags]), fmt="%d")
+        with open(poly, "w") as f:
+            f.write("# vertices are in the .node file\n0 2 0 0\n")
+            k = 0 if mesh.edges is None else len(mesh.edges)
+            f.write(f"{k} 1\n")
+            if k:
+                np.savetxt(f, np.column_stack([np.arange(k), mesh.edges, mesh.edge_tags]),
+                           fmt="%d")
+            f.write("0\n")

@@ -1,0 +1,308 @@
+"""VTK XML unstructured grids (``.vtu``): appended binary, raw or zlib-compressed.
+
+Written: one piece; points ``Float64`` with z = 0; triangles first (cells ``0..M-1``), then
+the tagged edges as line cells; the cell array ``tag`` (cell tags on triangles, edge tags on
+lines) when the mesh has tags; every point-data and cell-data field in its own dtype (cell
+data is 0 on the line cells); and a field-data array ``qdrefine`` (JSON bytes: physical
+names, and each field's shape and dtype) that qdrefine reads back and other readers
+ignore. The data is appended raw (the fastest to write and read), or zlib-compressed with
+``compress=True``; ParaView and meshio read both.
+
+Read: appended raw or zlib data with 32- or 64-bit headers; any other VTU (inline ASCII or
+base64, several pieces, other compressors) goes to meshio.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import xml.etree.ElementTree as ET
+import zlib
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._core import RawMesh, atomic_path, from_blocks, mesh_data, read_bytes, split_data
+
+__all__ = ["read", "write"]
+
+_VTK_TYPES = {"Int8": "i1", "UInt8": "u1", "Int16": "<i2", "UInt16": "<u2", "Int32": "<i4",
+              "UInt32": "<u4", "Int64": "<i8", "UInt64": "<u8", "Float32": "<f4",
+              "Float64": "<f8"}
+_NAMES = {np.dtype(v): k for k, v in _VTK_TYPES.items()}
+#: VTK cell types: (meshio's name, nodes per cell; 0: variable).
+_CELLS = {1: ("vertex", 1), 3: ("line", 2), 5: ("triangle", 3), 9: ("quad", 4),
+          10: ("tetra", 4), 12: ("hexahedron", 8), 13: ("wedge", 6), 14: ("pyramid", 5),
+          21: ("line3", 3), 22: ("triangle6", 6), 23: ("quad8", 8), 24: ("tetra10", 10),
+          2: ("poly_vertex", 0), 4: ("polyline", 0), 6: ("triangle_strip", 0),
+          7: ("polygon", 0), 8: ("pixel", 4), 11: ("voxel", 8)}
+_META = "qdrefine"
+_TAG_KEYS = ("tag", "gmsh:physical", "medit:ref", "cell_tags")
+_CHUNK = 1 << 20  # bytes per compressed block
+
+
+class _Fallback(Exception):
+    """A VTU this reader does not handle: meshio reads it."""
+
+
+# --------------------------------------------------------------------------------------------
+# reading
+
+
+def read(path: Path) -> RawMesh:
+    data = read_bytes(path)
+    try:
+        return _read(path, data)
+    except _Fallback:
+        from .meshio_formats import read_with_meshio
+
+        return read_with_meshio(path, "vtu", "VTK XML unstructured grid")
+    except (ValueError, KeyError, IndexError, ET.ParseError, zlib.error) as exc:
+        if str(exc).startswith(str(path)):
+            raise
+        raise ValueError(f"{path}: not a readable VTK XML unstructured grid file "
+                         f"({str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__})"
+                         ) from None
+
+
+def _read(path: Path, data: bytes) -> RawMesh:
+    start = data.find(b"<AppendedData")
+    if start < 0 or not data.lstrip().startswith((b"<?xml", b"<VTKFile")):
+        raise _Fallback
+    tag_end = data.find(b">", start)
+    underscore = data.find(b"_", tag_end)
+    if tag_end < 0 or underscore < 0:
+        raise ValueError(f"byte {start}: no '_' opening the appended data")
+    if b'encoding="raw"' not in data[start:tag_end]:
+        raise _Fallback
+    if b"</VTKFile>" not in data[-64:]:
+        raise ValueError(f"byte {len(data)}: the file ends early (no </VTKFile>)")
+    root = ET.fromstring(data[:start] + b"</VTKFile>")
+    if root.tag != "VTKFile" or root.get("type") != "UnstructuredGrid":
+        raise ValueError("not a VTKFile of type UnstructuredGrid")
+    if root.get("byte_order", "LittleEndian") != "LittleEndian":
+        raise _Fallback
+    header = np.dtype("<u8" if root.get("header_type") == "UInt64" else "<u4")
+    compressor = root.get("compressor")
+    if compressor not in (None, "vtkZLibDataCompressor"):
+        raise _Fallback
+    pieces = root.findall("./UnstructuredGrid/Piece")
+    if len(pieces) != 1:
+        raise _Fallback
+    piece = pieces[0]
+    base = underscore + 1
+
+    def array(item: ET.Element) -> NDArray:
+        if item.get("format") != "appended":
+            raise _Fallback
+        kind = _VTK_TYPES.get(item.get("type", ""))
+        if kind is None:
+            raise ValueError(f"DataArray {item.get('Name')!r}: unknown type {item.get('type')}")
+        offset = base + int(item.get("offset", "-1"))
+        raw = _block(data, offset, header, compressor is not None)
+        a = np.frombuffer(raw, dtype=kind)
+        comps = int(item.get("NumberOfComponents", "1"))
+        if comps < 1 or len(a) % comps:
+            raise ValueError(f"byte {offset}: DataArray {item.get('Name')!r} holds {len(a)} "
+                             f"values, not a multiple of {comps} components")
+        return a.reshape(-1, comps) if comps > 1 else a
+
+    n = int(piece.get("NumberOfPoints", "-1"))
+    n_cells = int(piece.get("NumberOfCells", "-1"))
+    points_item = piece.find("./Points/DataArray")
+    if points_item is None:
+        raise ValueError("no Points")
+    points = array(points_item).astype(np.float64)
+    if points.ndim != 2 or len(points) != n:
+        raise ValueError(f"Points: expected {n} points")
+    cells = {item.get("Name"): item for item in piece.findall("./Cells/DataArray")}
+    if {"connectivity", "offsets", "types"} - set(cells):
+        raise ValueError("Cells needs connectivity, offsets and types")
+    conn = array(cells["connectivity"]).astype(np.int64).ravel()
+    offsets = array(cells["offsets"]).astype(np.int64).ravel()
+    types = array(cells["types"]).astype(np.int64).ravel()
+    if len(offsets) != n_cells or len(types) != n_cells:
+        raise ValueError(f"Cells: expected {n_cells} offsets and types")
+    starts = np.concatenate([[0], offsets[:-1]])
+    sizes = offsets - starts
+    if n_cells and (sizes.min() < 0 or offsets[-1] > len(conn)):
+        raise ValueError("Cells: offsets do not fit the connectivity")
+    field_items = {item.get("Name"): item for item in piece.findall("./CellData/DataArray")}
+    key = next((k for k in _TAG_KEYS if k in field_items), None)
+    cell_tags = array(field_items[key]).ravel() if key else None
+    if cell_tags is not None and len(cell_tags) != n_cells:
+        raise ValueError(f"CellData {key!r}: expected {n_cells} values")
+    blocks, tags, triangle_cells = [], [], np.empty(0, np.int64)
+    for t in np.unique(types).tolist():
+        rows = np.flatnonzero(types == t)
+        name, npe = _CELLS.get(t, (f"VTK type {t}", 0))
+        if npe == 0 or (sizes[rows] != npe).any():
+            blocks.append((name, np.empty((len(rows), 0), np.int64)))
+        else:
+            blocks.append((name, conn[starts[rows][:, None] + np.arange(npe)]))
+        tags.append(None if cell_tags is None else cell_tags[rows])
+        if t == 5:
+            triangle_cells = rows
+    raw = from_blocks(path, points, blocks, tags)
+    meta = _meta(root, array)
+    raw.physical_names = {(int(d), int(t)): str(nm) for d, t, nm in meta.get("names", [])}
+    shapes = meta.get("shapes", {})
+    point_data = {}
+    for item in piece.findall("./PointData/DataArray"):
+        name = item.get("Name", "")
+        point_data[name] = _restore(array(item), shapes.get("point", {}).get(name), n)
+    cell_data = {}
+    for name, item in field_items.items():
+        if name == key and name in _TAG_KEYS:
+            continue
+        values = array(item)
+        if len(values) != n_cells:
+            raise ValueError(f"CellData {name!r}: expected {n_cells} rows")
+        cell_data[name] = _restore(values[triangle_cells], shapes.get("cell", {}).get(name),
+                                   len(triangle_cells))
+    if len(raw.triangles):
+        split_data(raw, point_data, cell_data)
+    return raw
+
+
+def _meta(root: ET.Element, array) -> dict:
+    for item in root.findall("./UnstructuredGrid/FieldData/DataArray"):
+        if item.get("Name") == _META:
+            try:
+                meta = json.loads(array(item).astype(np.uint8).tobytes().decode())
+            except (UnicodeDecodeError, json.JSONDecodeError):
+                raise ValueError(f"field data {_META!r} is not JSON") from None
+            return meta if isinstance(meta, dict) else {}
+    return {}
+
+
+def _restore(values: NDArray, spec, rows: int) -> NDArray:
+    if isinstance(spec, dict):
+        try:
+            return values.astype(np.dtype(spec["dtype"])).reshape(
+                (rows, *(int(s) for s in spec["shape"])))
+        except (KeyError, TypeError, ValueError):
+            pass
+    return np.array(values)
+
+
+def _block(data: bytes, offset: int, header: np.dtype, compressed: bool) -> bytes:
+    """The bytes of the appended block at ``offset`` (bounded by the file size)."""
+    size = header.itemsize
+    if offset < 0 or offset + size > len(data):
+        raise ValueError(f"byte {offset}: appended data offset outside the file")
+    if not compressed:
+        nbytes = int(np.frombuffer(data, header, 1, offset)[0])
+        if offset + size + nbytes > len(data):
+            raise ValueError(f"byte {offset}: the file ends inside an appended block of "
+                             f"{nbytes} bytes")
+        return data[offset + size:offset + size + nbytes]
+    head = np.frombuffer(data, header, 3, offset).astype(np.int64)
+    n_blocks = int(head[0])
+    if n_blocks < 0 or offset + (3 + n_blocks) * size > len(data):
+        raise ValueError(f"byte {offset}: bad compressed block header")
+    csizes = np.frombuffer(data, header, n_blocks, offset + 3 * size).astype(np.int64)
+    pos = offset + (3 + n_blocks) * size
+    if pos + int(csizes.sum()) > len(data):
+        raise ValueError(f"byte {offset}: the file ends inside compressed data")
+    out = []
+    for c in csizes.tolist():
+        out.append(zlib.decompress(data[pos:pos + c]))
+        pos += c
+    return b"".join(out)
+
+
+# --------------------------------------------------------------------------------------------
+# writing
+
+
+def write(path: Path, mesh, *, binary: bool = True, compress: bool = False) -> None:
+    """Write ``mesh`` as a VTU file with appended binary data (raw, or zlib with
+    ``compress=True``); ``binary=False`` is refused (text VTU loses nothing but is slow,
+    and meshio writes it)."""
+    if not binary:
+        from .meshio_formats import write_with_meshio
+
+        write_with_meshio(path, mesh, "vtu", tags=True, data=True, binary=False)
+        return
+    m, n = mesh.n_triangles, mesh.n_points
+    k = 0 if mesh.edges is None else len(mesh.edges)
+    tris = np.asarray(mesh.triangles)
+    edges = np.asarray(mesh.edges, dtype=tris.dtype) if k else np.empty((0, 2), tris.dtype)
+    conn = np.concatenate([tris.ravel(), edges.ravel()])
+    offsets = np.concatenate([np.arange(1, m + 1, dtype=np.int64) * 3,
+                              3 * m + np.arange(1, k + 1, dtype=np.int64) * 2])
+    types = np.concatenate([np.full(m, 5, np.uint8), np.full(k, 3, np.uint8)])
+    xyz = np.zeros((n, 3))
+    xyz[:, :2] = mesh.points
+    point_data, cell_data = mesh_data(mesh)
+    cell_fields = {}
+    if mesh.cell_tags is not None or k:
+        cell_tags = mesh.cell_tags if mesh.cell_tags is not None else np.zeros(m, np.int64)
+        edge_tags = mesh.edge_tags if k else np.zeros(0, np.int64)
+        cell_fields["tag"] = np.concatenate([np.asarray(cell_tags, np.int64),
+                                             np.asarray(edge_tags, np.int64)])
+    shapes: dict[str, dict] = {"point": {}, "cell": {}}
+    for name, value in cell_data.items():
+        a = np.asarray(value)
+        cell_fields[name] = np.concatenate([a, np.zeros((k, *a.shape[1:]), a.dtype)])
+        shapes["cell"][name] = {"shape": list(a.shape[1:]), "dtype": a.dtype.str}
+    for name, value in point_data.items():
+        a = np.asarray(value)
+        shapes["point"][name] = {"shape": list(a.shape[1:]), "dtype": a.dtype.str}
+    meta = {"names": [[d, t, nm] for (d, t), nm in sorted((mesh.physical_names or {}).items())],
+            "shapes": shapes}
+    blocks: list = []
+    offset = [0]
+
+    def item(name: str, a: NDArray) -> str:
+        a = np.asarray(a)
+        if a.dtype == bool:
+            a = a.astype(np.uint8)
+        if a.dtype.kind not in "iuf":
+            raise ValueError(f"{path}: data {name!r} of dtype {a.dtype} cannot be written")
+        a = np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<"))
+        comps = f' NumberOfComponents="{int(np.prod(a.shape[1:]))}"' if a.ndim > 1 else ""
+        body = _encode(a, compress)
+        text = (f'<DataArray type="{_NAMES[a.dtype.newbyteorder("=")]}" '
+                f'Name="{_attr(name)}"{comps} format="appended" offset="{offset[0]}"/>\n')
+        blocks.extend(body)
+        offset[0] += sum(memoryview(b).nbytes for b in body)
+        return text
+
+    xml = ['<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
+           'byte_order="LittleEndian" header_type="UInt64"'
+           + (' compressor="vtkZLibDataCompressor"' if compress else "") + '>\n'
+           '<UnstructuredGrid>\n<FieldData>\n',
+           item(_META, np.frombuffer(json.dumps(meta).encode(), np.uint8)).replace(
+               "<DataArray", f'<DataArray NumberOfTuples="{len(json.dumps(meta).encode())}"'),
+           f'</FieldData>\n<Piece NumberOfPoints="{n}" NumberOfCells="{m + k}">\n<Points>\n',
+           item("Points", xyz), "</Points>\n<Cells>\n", item("connectivity", conn),
+           item("offsets", offsets), item("types", types), "</Cells>\n<PointData>\n"]
+    xml += [item(name, value) for name, value in point_data.items()]
+    xml.append("</PointData>\n<CellData>\n")
+    xml += [item(name, value) for name, value in cell_fields.items()]
+    xml.append('</CellData>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding="raw">\n_')
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        f.write("".join(xml).encode())
+        for body in blocks:
+            f.write(body)
+        f.write(b"\n</AppendedData>\n</VTKFile>\n")
+
+
+def _encode(a: NDArray, compress: bool) -> list:
+    """The appended block of the contiguous array ``a``: header and data buffers."""
+    if not compress:
+        return [np.array([a.nbytes], "<u8").tobytes(), memoryview(a.reshape(-1)).cast("B")]
+    raw = a.tobytes()
+    chunks = [zlib.compress(raw[i:i + _CHUNK], 1) for i in range(0, len(raw), _CHUNK)] or \
+        [zlib.compress(b"", 1)]
+    last = len(raw) - _CHUNK * (len(chunks) - 1) if raw else 0
+    head = np.array([len(chunks), _CHUNK, last, *map(len, chunks)], "<u8")
+    return [head.tobytes(), *chunks]
+
+
+def _attr(text: str) -> str:
+    return re.sub(r'[&<>"]', lambda m: {"&": "&amp;", "<": "&lt;", ">": "&gt;",
+                                        '"': "&quot;"}[m.group()], text)

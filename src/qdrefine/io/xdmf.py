@@ -1,0 +1,96 @@
+"""XDMF 3 with its heavy data in HDF5: ``name.xdmf`` (XML) and ``name.h5`` (arrays).
+
+Written: geometry ``XYZ`` (z = 0), topology ``Triangle`` (or ``Mixed`` with the tagged edges
+as two-node polylines after the triangles), the cell attribute ``tag`` when the mesh has
+tags, each point / cell data field as a node / cell attribute in its own dtype and shape,
+and the physical names as meshio's ``Information`` map (which meshio reads as
+``field_data``). The two files are written as a set (both, or neither). ParaView and meshio
+read them; qdrefine reads XDMF through meshio (which uses h5py, so large meshes read fast).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from xml.sax.saxutils import escape, quoteattr
+
+import numpy as np
+
+from ._core import RawMesh, atomic_paths, mesh_data
+
+__all__ = ["read", "write"]
+
+_TYPES = {"i1": ("Char", 1), "i2": ("Short", 2), "i4": ("Int", 4), "i8": ("Int", 8),
+          "u1": ("UChar", 1), "u2": ("UShort", 2), "u4": ("UInt", 4), "u8": ("UInt", 8),
+          "f4": ("Float", 4), "f8": ("Float", 8), "b1": ("UChar", 1)}
+
+
+def read(path: Path) -> RawMesh:
+    from .meshio_formats import read_with_meshio
+
+    return read_with_meshio(path, "xdmf", "XDMF")
+
+
+def write(path: Path, mesh, *, binary: bool = True) -> None:  # noqa: ARG001
+    """Write ``name.xdmf`` and ``name.h5`` as one set."""
+    import h5py
+
+    h5_path = path.with_suffix(".h5")
+    m, n = mesh.n_triangles, mesh.n_points
+    k = 0 if mesh.edges is None else len(mesh.edges)
+    xyz = np.zeros((n, 3))
+    xyz[:, :2] = mesh.points
+    tris = np.asarray(mesh.triangles, dtype=np.int64)
+    if k:
+        mixed = np.concatenate([
+            np.column_stack([np.full(m, 4), tris]).ravel(),
+            np.column_stack([np.full(k, 2), np.full(k, 2),
+                             np.asarray(mesh.edges, np.int64)]).ravel()])
+        topology = ("Mixed", m + k, mixed)
+    else:
+        topology = ("Triangle", m, tris)
+    point_data, cell_data = mesh_data(mesh)
+    cells = {}
+    if mesh.cell_tags is not None or k:
+        cell_tags = mesh.cell_tags if mesh.cell_tags is not None else np.zeros(m, np.int64)
+        cells["tag"] = np.concatenate([np.asarray(cell_tags, np.int64),
+                                       np.asarray(mesh.edge_tags if k else [], np.int64)])
+    for name, value in cell_data.items():
+        a = np.asarray(value)
+        cells[name] = np.concatenate([a, np.zeros((k, *a.shape[1:]), a.dtype)])
+    datasets: list[tuple[str, np.ndarray]] = []
+
+    def item(a: np.ndarray) -> str:
+        a = np.asarray(a)
+        key = a.dtype.str[1:]
+        if key not in _TYPES:
+            raise ValueError(f"{path}: data of dtype {a.dtype} cannot be written to XDMF")
+        kind, size = _TYPES[key]
+        name = f"data{len(datasets)}"
+        datasets.append((name, a))
+        dims = " ".join(str(d) for d in a.shape)
+        return (f'<DataItem DataType="{kind}" Precision="{size}" Dimensions="{dims}" '
+                f'Format="HDF">{escape(h5_path.name)}:/{name}</DataItem>')
+
+    def attribute(name: str, a: np.ndarray, center: str) -> str:
+        kind = "Scalar" if a.ndim == 1 else ("Vector" if a.shape[1:] == (3,) else "Matrix")
+        return (f"<Attribute Name={quoteattr(name)} AttributeType=\"{kind}\" "
+                f"Center=\"{center}\">{item(a)}</Attribute>\n")
+
+    kind, count, cells_array = topology
+    xml = ['<?xml version="1.0"?>\n<Xdmf Version="3.0">\n<Domain>\n<Grid Name="mesh" '
+           'GridType="Uniform">\n', f'<Geometry GeometryType="XYZ">{item(xyz)}</Geometry>\n',
+           f'<Topology TopologyType="{kind}" NumberOfElements="{count}">{item(cells_array)}'
+           "</Topology>\n"]
+    xml += [attribute(name, np.asarray(v), "Node") for name, v in point_data.items()]
+    xml += [attribute(name, v, "Cell") for name, v in cells.items()]
+    if mesh.physical_names:
+        maps = "".join(f'<map key={quoteattr(nm)} dim="{d}">{t}</map>'
+                       for (d, t), nm in sorted(mesh.physical_names.items()))
+        xml.append(f'<Information Name="Information" Value="{len(mesh.physical_names)}">'
+                   f"<![CDATA[<main>{maps}</main>]]></Information>\n")
+    xml.append("</Grid>\n</Domain>\n</Xdmf>\n")
+    with atomic_paths([h5_path, path]) as (h5_tmp, xml_tmp):
+        with h5py.File(h5_tmp, "w") as h5:
+            for name, a in datasets:
+                h5.create_dataset(name, data=a)
+        xml_tmp.write_text("".join(xml), encoding="utf-8")

@@ -1,0 +1,93 @@
+"""Point and cell data through uniform refinement (:mod:`qdrefine.fields`), in the API and
+the command line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import qdrefine
+from meshes import jittered_grid
+from qdrefine import Mesh, refine, scheme_names
+from qdrefine.cli import main
+from qdrefine.fields import inherit_cell_data, interpolate_point_data
+
+
+@settings(max_examples=20, deadline=None, derandomize=True)
+@given(st.integers(1, 7), st.integers(0, 1000), st.sampled_from(scheme_names()),
+       st.integers(1, 2), st.sampled_from([1.0, 1e-5, 7e4]),
+       st.tuples(*[st.floats(-1e3, 1e3, allow_nan=False)] * 3))
+def test_coordinates_and_linear_fields_are_reproduced(n, seed, scheme, levels, scale, c):
+    """The coordinate fields come out bit for bit equal to the refined points (the same
+    formula); a linear field ``c0 + c1 x + c2 y`` within a few ulps of its exact value."""
+    base = jittered_grid(n, seed=seed, shear=0.2)
+    p = base.points * scale
+    linear = c[0] + c[1] * p[:, 0] + c[2] * p[:, 1]
+    mesh = Mesh(p, base.triangles, base.cell_tags, base.edges, base.edge_tags,
+                point_data={"x": p[:, 0], "xy": p, "f": linear},
+                cell_data={"id": np.arange(base.n_triangles)},
+                physical_names={(2, 1): "inside"})
+    fine = refine(mesh, scheme, levels)
+    assert fine.point_data["x"].tobytes() == fine.points[:, 0].tobytes()
+    assert fine.point_data["xy"].tobytes() == fine.points.tobytes()
+    exact = c[0] + c[1] * fine.points[:, 0] + c[2] * fine.points[:, 1]
+    size = abs(c[0]) + (abs(c[1]) + abs(c[2])) * np.abs(fine.points).max()
+    assert np.abs(fine.point_data["f"] - exact).max() <= 16 * np.finfo(float).eps * size
+    t = fine.n_triangles // mesh.n_triangles
+    assert np.array_equal(fine.cell_data["id"], np.repeat(np.arange(mesh.n_triangles), t))
+    assert dict(fine.physical_names) == {(2, 1): "inside"}
+
+
+def test_integer_and_vector_fields():
+    base = jittered_grid(3, seed=1)
+    mesh = base.replace(point_data={"i": np.arange(base.n_points),
+                                    "v": np.ones((base.n_points, 2, 2))},
+                        cell_data={"m": np.ones((base.n_triangles, 3), np.int32)})
+    fine = refine(mesh, "7t-qd")
+    assert fine.point_data["i"].dtype == np.float64
+    assert fine.point_data["v"].shape == (fine.n_points, 2, 2)
+    assert (fine.point_data["v"] == 1).all()
+    assert fine.cell_data["m"].dtype == np.int32 and fine.cell_data["m"].shape == (
+        fine.n_triangles, 3)
+
+
+def test_helpers_for_local_refinement():
+    """The helpers take any split edges (in the order of their new points) and parents."""
+    values = {"u": np.array([0.0, 3.0, 6.0, 9.0])}
+    ends = np.array([[0, 3], [1, 2]])
+    assert interpolate_point_data(values, ends, 2)["u"].tolist() == [3.0, 6.0, 4.0, 5.0]
+    assert interpolate_point_data(values, ends, 1)["u"].tolist() == [4.5, 4.5]
+    with pytest.raises(ValueError, match="must be 1 or 2"):
+        interpolate_point_data(values, ends, 3)
+    cells = inherit_cell_data({"m": np.array([5, 6])}, np.array([1, 1, 0]))
+    assert cells["m"].tolist() == [6, 6, 5]
+
+
+@pytest.mark.parametrize("ext", [".msh", ".vtu", ".xdmf"])
+def test_command_line_keeps_data_and_names(tmp_path, ext):
+    base = jittered_grid(4, seed=6)
+    mesh = base.replace(point_data={"T": 2.0 + 3.0 * base.points[:, 0]},
+                        cell_data={"material": np.arange(base.n_triangles) % 3},
+                        physical_names={(2, 1): "steel", (1, 2): "wall"})
+    qdrefine.write(tmp_path / f"in{ext}", mesh)
+    assert main(["refine", str(tmp_path / f"in{ext}"), str(tmp_path / f"out{ext}"), "-q"]) == 0
+    fine = qdrefine.read(tmp_path / f"out{ext}")
+    expected = refine(mesh, "7t-qd")
+    assert fine.point_data["T"].tobytes() == expected.point_data["T"].tobytes()
+    assert np.array_equal(fine.cell_data["material"], expected.cell_data["material"])
+    assert dict(fine.physical_names) == dict(mesh.physical_names)
+
+
+def test_command_line_format_version(tmp_path):
+    qdrefine.write(tmp_path / "in.msh", jittered_grid(3, seed=2))
+    for argv, head in ((["refine"], "4.1 0 8"), (["refine", "--format-version", "2.2"], "2.2 0 8"),
+                       (["convert", "--format-version", "2.2", "--binary"], "2.2 1 8")):
+        out = tmp_path / "out.msh"
+        assert main([*argv, str(tmp_path / "in.msh"), str(out), "-q"]) == 0
+        assert out.read_bytes().split(b"\n")[1].decode() == head
+        out.unlink()
+    assert main(["convert", str(tmp_path / "in.msh"), str(tmp_path / "o.vtu"),
+                 "--format-version", "2.2", "-q"]) == 1
+    assert not (tmp_path / "o.vtu").exists()

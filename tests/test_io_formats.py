@@ -1,0 +1,321 @@
+"""The fast readers and writers (Gmsh MSH 2.2 / 4.1, VTU, XDMF): lossless round trips over
+random meshes with data, files written by the Gmsh SDK itself, our files read by Gmsh and
+meshio, and bad files named by line or byte."""
+
+from __future__ import annotations
+
+import tempfile
+import warnings
+from pathlib import Path
+
+import gmsh
+import meshio
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import qdrefine
+from meshes import jittered_grid
+from qdrefine import Mesh
+
+#: (extension, write keywords) of every variant that holds tags, data and physical names.
+LOSSLESS = [(".msh", {}), (".msh", {"binary": True}), (".msh", {"format_version": "2.2"}),
+            (".msh", {"format_version": "2.2", "binary": True}), (".vtu", {}), (".xdmf", {})]
+IDS = ["msh41", "msh41-binary", "msh22", "msh22-binary", "vtu", "xdmf"]
+
+
+def same_everything(a: Mesh, b: Mesh) -> None:
+    """Points bit for bit, triangles, tags, names, data (values, shape, dtype), transitions."""
+    for name in ("points", "triangles", "cell_tags", "edges", "edge_tags", "transitions"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            assert np.array_equal(x, y), name
+    assert a.points.tobytes() == b.points.tobytes()  # bit for bit, signed zeros included
+    assert dict(a.physical_names) == dict(b.physical_names)
+    for kind in ("point_data", "cell_data"):
+        x, y = getattr(a, kind), getattr(b, kind)
+        assert set(x) == set(y), kind
+        for key in x:
+            assert x[key].dtype == y[key].dtype and x[key].shape == y[key].shape, (kind, key)
+            assert np.array_equal(x[key], y[key], equal_nan=x[key].dtype.kind == "f"), key
+
+
+@st.composite
+def meshes_with_data(draw) -> Mesh:
+    """Random jittered meshes (shuffled numbering, random float coordinates) with random
+    point and cell data of several shapes and dtypes, physical names and transitions."""
+    n_side = draw(st.integers(1, 6))
+    base = jittered_grid(n_side, seed=draw(st.integers(0, 2**16)),
+                         shear=draw(st.sampled_from([0.0, 0.3])))
+    scale = draw(st.sampled_from([1.0, 1e-7, 3.3e5, -2.0]))
+    rng = np.random.default_rng(draw(st.integers(0, 2**16)))
+    n, m = base.n_points, base.n_triangles
+    shapes = draw(st.lists(st.sampled_from([(), (1,), (2,), (3,), (2, 2), (4,)]), max_size=3))
+    dtypes = [np.float64, np.int64, np.int32, np.float32, np.uint8]
+
+    def field(rows: int, shape: tuple, k: int):
+        dtype = dtypes[k % len(dtypes)]
+        if np.dtype(dtype).kind == "f":
+            a = rng.standard_normal((rows, *shape)) * 10.0 ** rng.integers(-30, 30)
+            a.ravel()[:1] = [np.nan][:a.size]
+            return a.astype(dtype)
+        return rng.integers(0, 200, (rows, *shape)).astype(dtype)
+
+    point_data = {f"p {k}": field(n, s, k) for k, s in enumerate(shapes)}
+    cell_data = {f"c{k}": field(m, s, k + 1) for k, s in enumerate(reversed(shapes))}
+    transitions = None
+    if draw(st.booleans()):
+        transitions = np.full((m, 3), -1)
+        transitions[0] = base.triangles[0]
+    cell_tags = base.cell_tags if draw(st.booleans()) and base.cell_tags.any() else None
+    names = {(2, 1): "left region", (1, 2): "wall"} if draw(st.booleans()) else {}
+    return Mesh(base.points * scale, base.triangles, cell_tags, base.edges, base.edge_tags,
+                point_data=point_data, cell_data=cell_data, physical_names=names,
+                transitions=transitions)
+
+
+@settings(max_examples=15, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(meshes_with_data())
+def test_round_trips_are_lossless(mesh):
+    with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for ext, kwargs in LOSSLESS:
+            path = Path(tmp) / f"m{ext}"
+            qdrefine.write(path, mesh, **kwargs)
+            try:
+                same_everything(mesh, qdrefine.read(path))
+            except AssertionError as exc:
+                raise AssertionError(f"{ext} {kwargs}: {exc}") from None
+
+
+def test_vtu_compressed_reads_back(tmp_path):
+    from qdrefine.io import vtu
+
+    mesh = jittered_grid(6, seed=1)
+    mesh = mesh.replace(point_data={"u": mesh.points[:, 0]})
+    vtu.write(tmp_path / "z.vtu", mesh, compress=True)
+    same_everything(mesh, qdrefine.read(tmp_path / "z.vtu"))
+    back = meshio.read(tmp_path / "z.vtu")
+    assert np.array_equal(back.points[:, :2], mesh.points)
+
+
+# files written by Gmsh itself (the SDK) -----------------------------------------------------
+
+@pytest.fixture(scope="module")
+def gmsh_model():
+    """A Gmsh model: two rectangles with named physical surfaces and curves, meshed."""
+    gmsh.initialize(interruptible=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add("two")
+    occ = gmsh.model.occ
+    a = occ.addRectangle(0, 0, 0, 1, 1)
+    b = occ.addRectangle(1, 0, 0, 1.5, 1)
+    occ.fragment([(2, a)], [(2, b)])
+    occ.synchronize()
+    surfaces = [t for _, t in gmsh.model.getEntities(2)]
+    gmsh.model.addPhysicalGroup(2, [surfaces[0]], 7, name="left")
+    gmsh.model.addPhysicalGroup(2, [surfaces[1]], 8, name="right")
+    curves = [t for _, t in gmsh.model.getEntities(1)]
+    gmsh.model.addPhysicalGroup(1, curves[:2], 3, name="some edges")
+    gmsh.option.setNumber("Mesh.MeshSizeMax", 0.15)
+    gmsh.model.mesh.generate(2)
+    yield gmsh
+    gmsh.finalize()
+
+
+def _api_mesh(g):
+    """Points, triangles (as sets of node coordinates) and tags from Gmsh's API."""
+    tags, coords, _ = g.model.mesh.getNodes()
+    xyz = dict(zip(tags.tolist(), coords.reshape(-1, 3)[:, :2].tolist(), strict=True))
+    triangles, lines = {}, {}
+    for dim, target in ((2, triangles), (1, lines)):
+        for _, phys in g.model.getPhysicalGroups(dim):
+            for ent in g.model.getEntitiesForPhysicalGroup(dim, phys):
+                _, _, nodes = g.model.mesh.getElements(dim, ent)
+                k = dim + 1
+                for row in nodes[0].reshape(-1, k).tolist():
+                    target[frozenset(tuple(xyz[v]) for v in row)] = phys
+    return triangles, lines
+
+
+def _file_mesh(mesh: Mesh):
+    p = mesh.points.tolist()
+    tris = {frozenset(tuple(p[v]) for v in row): int(t)
+            for row, t in zip(mesh.triangles.tolist(), mesh.cell_tags.tolist(), strict=True)}
+    lines = {frozenset(tuple(p[v]) for v in row): int(t)
+             for row, t in zip(mesh.edges.tolist(), mesh.edge_tags.tolist(), strict=True)}
+    return tris, lines
+
+
+@pytest.mark.parametrize("version", [4.1, 2.2])
+@pytest.mark.parametrize("binary", [0, 1])
+def test_files_written_by_gmsh_read_exactly(tmp_path, gmsh_model, version, binary):
+    """Every triangle and tagged line of Gmsh's own file, with its physical tag and names;
+    coordinates bit for bit (Gmsh writes text with 16 digits, so the text files are
+    compared with the text's own values, read back by Python)."""
+    g = gmsh_model
+    g.option.setNumber("Mesh.MshFileVersion", version)
+    g.option.setNumber("Mesh.Binary", binary)
+    path = tmp_path / f"gmsh-{version}-{binary}.msh"
+    g.write(str(path))
+    mesh = qdrefine.read(path)
+    api_tris, api_lines = _api_mesh(g)
+    if not binary:  # compare with what the text says, parsed independently
+        g.open(str(path))
+        api_tris, api_lines = _api_mesh(g)
+    tris, lines = _file_mesh(mesh)
+    assert tris == api_tris and lines == api_lines
+    assert dict(mesh.physical_names) == {(2, 7): "left", (2, 8): "right",
+                                         (1, 3): "some edges"}
+
+
+@pytest.mark.parametrize("kwargs", [k for _, k in LOSSLESS[:4]], ids=IDS[:4])
+def test_gmsh_reads_our_files(tmp_path, gmsh_model, kwargs):
+    """Gmsh opens our MSH files: the same nodes bit for bit, triangles, physical groups with
+    their names, and one view per data field."""
+    g = gmsh_model
+    base = jittered_grid(5, seed=4)
+    mesh = base.replace(physical_names={(2, 1): "one", (1, 2): "two"},
+                        point_data={"u": base.points[:, 0] * 3},
+                        cell_data={"w": np.arange(base.n_triangles) * 0.5})
+    path = tmp_path / "ours.msh"
+    qdrefine.write(path, mesh, **kwargs)
+    g.open(str(path))
+    tags, coords, _ = g.model.mesh.getNodes()
+    xy = coords.reshape(-1, 3)[np.argsort(tags), :2]
+    assert xy.tobytes() == mesh.points.tobytes()
+    _, elements, nodes = g.model.mesh.getElements(2)
+    order = np.argsort(elements[0])
+    assert np.array_equal(nodes[0].reshape(-1, 3)[order] - 1, mesh.triangles)
+    groups = {(d, t): g.model.getPhysicalName(d, t) for d, t in g.model.getPhysicalGroups()}
+    assert groups[(2, 1)] == "one" and groups[(1, 2)] == "two"
+    # untagged triangles (tag 0) are physical group 0 in MSH 4.1, so that Gmsh keeps them
+    assert set(groups) - {(2, 0)} == {(2, 1)} | {(1, int(t)) for t in np.unique(mesh.edge_tags)}
+    names = [g.option.getString(f"View[{i}].Name") for i in range(len(g.view.getTags()))]
+    assert sorted(names) == ["u", "w"]
+    for tag in g.view.getTags():
+        g.view.remove(tag)
+
+
+@pytest.mark.parametrize(("ext", "kwargs"), LOSSLESS[:5], ids=IDS[:5])
+def test_meshio_reads_our_files(tmp_path, ext, kwargs):
+    base = jittered_grid(4, seed=8)
+    # meshio 5.3 cannot read $ElementData of MSH 2.2 files at all (it splits the values by
+    # the length of (type, cells) tuples), so those files get point data only
+    cell_data = {} if kwargs.get("format_version") == "2.2" else \
+        {"w": np.arange(base.n_triangles) * 0.5}
+    mesh = base.replace(point_data={"u": base.points[:, 1]}, cell_data=cell_data)
+    path = tmp_path / f"m{ext}"
+    qdrefine.write(path, mesh, **kwargs)
+    back = meshio.read(path)
+    assert back.points[:, :2].tobytes() == mesh.points.tobytes()
+    tris = back.cells_dict["triangle"]
+    assert {tuple(r) for r in tris.tolist()} == {tuple(r) for r in mesh.triangles.tolist()}
+    assert len(back.cells_dict["line"]) == len(mesh.edges)
+    assert np.array_equal(back.point_data["u"], mesh.point_data["u"])
+
+
+# bad files ---------------------------------------------------------------------------------
+
+def _msh41(mesh: Mesh, tmp_path: Path, binary: bool = False) -> bytes:
+    qdrefine.write(tmp_path / "good.msh", mesh, binary=binary)
+    return (tmp_path / "good.msh").read_bytes()
+
+
+BAD_TEXT = {
+    "a bad number names its line": (lambda t: t.replace(b"\n2 1 0 ", b"\n2 1 x ", 1),
+                                    r"bad\.msh: not a readable Gmsh MSH file \(line \d+: "
+                                    r"expected a number, got 'x'\)"),
+    "truncated inside $Nodes": (lambda t: t[:t.index(b"$EndNodes") - 20],
+                                r"bad\.msh: not a readable Gmsh MSH file \(line \d+: the file "
+                                r"ends inside \$Nodes"),
+    "unknown element type": (lambda t: t.replace(b"\n2 1 2 ", b"\n2 1 77 ", 1),
+                             r"line \d+: unknown element type 77"),
+    "no $MeshFormat": (lambda t: t[t.index(b"$EndMeshFormat") + 15:],
+                       r"line 1: no \$MeshFormat section"),
+    "version 3": (lambda t: t.replace(b"4.1 0 8", b"3.0 0 8"),
+                  r"line 2: MSH version 3.0 is not supported"),
+}
+
+
+@pytest.mark.parametrize("problem", list(BAD_TEXT))
+def test_bad_text_msh_names_file_and_line(tmp_path, problem):
+    edit, message = BAD_TEXT[problem]
+    text = _msh41(jittered_grid(3, seed=2), tmp_path)
+    bad = edit(text)
+    (tmp_path / "bad.msh").write_bytes(bad)
+    with pytest.raises(ValueError, match=message or "bad.msh: ") as info:
+        qdrefine.read(tmp_path / "bad.msh")
+    assert str(info.value).startswith(str(tmp_path / "bad.msh"))
+    assert "\n" not in str(info.value)
+
+
+def test_element_using_an_unknown_node(tmp_path):
+    text = _msh41(jittered_grid(3, seed=2), tmp_path).decode()
+    head, rest = text.split("$Elements\n")
+    lines = rest.splitlines()
+    lines[2] = " ".join(lines[2].split()[:-1] + ["999"])
+    (tmp_path / "bad.msh").write_text(head + "$Elements\n" + "\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=r"bad\.msh: not a readable Gmsh MSH file \(element "
+                                         r"\d+ uses node 999, which is not in \$Nodes\)"):
+        qdrefine.read(tmp_path / "bad.msh")
+
+
+@pytest.mark.parametrize("cut", [0.3, 0.6, 0.9, 0.999])
+def test_truncated_binary_files_name_the_byte(tmp_path, cut):
+    mesh = jittered_grid(6, seed=3)
+    for ext, kwargs in ((".msh", {"binary": True}),
+                        (".msh", {"binary": True, "format_version": "2.2"}), (".vtu", {})):
+        qdrefine.write(tmp_path / f"good{ext}", mesh, **kwargs)
+        data = (tmp_path / f"good{ext}").read_bytes()
+        (tmp_path / f"bad{ext}").write_bytes(data[:int(len(data) * cut)])
+        with pytest.raises(ValueError, match=rf"bad\{ext}: not a readable .*(byte|line) \d+"
+                           if ext == ".msh" else rf"bad\{ext}: not a readable"):
+            qdrefine.read(tmp_path / f"bad{ext}")
+
+
+def test_fifo_is_refused_without_waiting(tmp_path):
+    import os
+
+    fifo = tmp_path / "pipe.msh"
+    os.mkfifo(fifo)
+    with pytest.raises(OSError, match="pipe.msh: not a regular file"):
+        qdrefine.read(fifo)
+
+
+# exact text numbers ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("arrow", [True, False], ids=["pyarrow", "python"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_text_floats_read_back_bit_for_bit(monkeypatch, arrow, seed):
+    """Every double (random bit patterns: subnormals, extremes, -0.0, inf, nan) formatted by
+    either formatter reads back bit for bit through either parser (pandas' table reader, or
+    np.fromstring where pandas declines, as for inf and nan), with an id column as written
+    in data sections."""
+    from qdrefine.io import _text
+
+    rng = np.random.default_rng(seed)
+    values = rng.integers(0, 2**64, 20000, dtype=np.uint64).view(np.float64)
+    values[:8] = [0.0, -0.0, 5e-324, -2.2250738585072014e-308, 1.7976931348623157e308,
+                  np.inf, -np.inf, 0.1]
+    values = values[~np.isnan(values)]
+    values[-1] = np.nan
+    rows = values[: len(values) // 2 * 2].reshape(-1, 2)
+    if not arrow:
+        monkeypatch.setattr(_text, "_arrow", lambda: None)
+    ids = np.arange(1, len(rows) + 1)
+    text = b"".join(bytes(p) for p in _text.format_floats(np.column_stack([ids, rows]),
+                                                          first="%d"))
+    for parsed in (_text.parse_table(text, 3), _text.parse(text, np.float64).reshape(-1, 3)):
+        assert np.array_equal(parsed[:, 0], ids)
+        assert parsed[:, 1:].tobytes() == rows.tobytes() or (
+            np.array_equal(parsed[:, 1:], rows, equal_nan=True)
+            and np.array_equal(np.signbit(parsed[:, 1:]), np.signbit(rows)))
+    # the fast path itself (pandas leaves inf and nan to np.fromstring): finite rows
+    finite = rows[np.isfinite(rows).all(axis=1)]
+    text = b"".join(bytes(p) for p in _text.format_floats(finite))
+    table = _text._pandas_table(text, 2, np.float64)
+    assert table is not None and table.tobytes() == finite.tobytes()
