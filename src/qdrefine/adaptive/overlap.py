@@ -28,15 +28,8 @@ def overlap_marks(inp: StepInput, tree: Tree, kids: NDArray[np.int64]) -> None:
     child = ref[_local(tree.rows[nodes], sten)]  # (P, T, 3, 2)
     marked = ref[_local(inp.mesh.triangles[inp.pairs[:, 0]][:, None, :], sten)]  # (P, 1, 3, 2)
     hit = _interiors_meet(child, np.broadcast_to(marked, child.shape))
-    hit &= _same(child, np.broadcast_to(marked, child.shape))  # the others replace it
+    hit &= _twice_area(child) >= _twice_area(marked)  # the smaller ones refine it already
     tree.again[nodes[hit]] = True
-
-
-def _same(a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[np.bool_]:
-    """Whether triangles ``a`` and ``b`` (``(..., 3, 2)`` integers) have the same corners."""
-    key = np.array([1, 1 << 20])
-    sa, sb = np.sort(a @ key, axis=-1), np.sort(b @ key, axis=-1)
-    return (sa == sb).all(axis=-1)
 
 
 def _reference(k: int) -> NDArray[np.int64]:

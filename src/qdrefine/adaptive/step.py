@@ -1,5 +1,6 @@
 """One refinement step: build the working mesh, run the rounds until nothing changes, emit;
-then the follow-up step that partitions the children meeting marked transition children."""
+then the follow-up step that partitions the children meeting marked transition children
+and not smaller than them."""
 
 from __future__ import annotations
 

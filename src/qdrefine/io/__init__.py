@@ -177,7 +177,8 @@ def read(path: PathLike) -> Mesh:
     except ValueError as exc:
         raise ValueError(f"{raw.path}: {exc}") from None
     return Mesh._trusted(found.points, found.triangles, found.cell_tags, found.edges,
-                         found.edge_tags, point_data, cell_data, names, transitions)
+                         found.edge_tags, point_data, cell_data, names, transitions,
+                         buckets=found.buckets)
 
 
 def check_file(path: PathLike, min_angle: float = MIN_ANGLE) -> tuple[RawMesh, Checked]:
