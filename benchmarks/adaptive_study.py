@@ -168,9 +168,10 @@ def plot_loops(loops, history, png):
                 [r["min_angle_ratio"] for r in res["cycles"]], marker=marker, linestyle=line,
                 label=f"{name} (Doerfler, f = 1)")
     if history:
-        rows = history["history dropped"]
-        ax.plot([r["cycle"] for r in rows], [r["min_angle_ratio"] for r in rows], marker="x",
-                linestyle="-", color="black", label="L-shape AFEM, history dropped")
+        for key, line in (("with history", "-"), ("history dropped", ":")):
+            rows = history[key]
+            ax.plot([r["cycle"] for r in rows], [r["min_angle_ratio"] for r in rows],
+                    marker="x", linestyle=line, color="black", label=f"L-shape AFEM, {key}")
     ax.axhline(0.4, color="gray", linewidth=0.8, label="0.4 (acceptance)")
     ax.set_xlabel("cycle")
     ax.set_ylabel("smallest angle / initial smallest angle")
