@@ -132,3 +132,17 @@ def test_uniform_levels_are_unchanged_by_the_history():
     b = refine(mesh.replace(transitions=None), "7t-qd")
     np.testing.assert_array_equal(a.points, b.points)
     np.testing.assert_array_equal(a.triangles, b.triangles)
+
+
+@pytest.mark.parametrize("name", sorted(examples.GMSH_MESHES))
+def test_gmsh_examples_are_what_their_descriptions_say(name):
+    """The counts and smallest angles quoted in ``examples.GMSH_MESHES`` are the files'."""
+    import re
+
+    mesh = examples.gmsh_mesh(name)
+    text = examples.GMSH_MESHES[name]
+    count = int(re.search(r"(\d+) (?:near-equilateral )?triangles", text).group(1))
+    angle = float(re.search(r"smallest angle ([\d.]+) deg", text).group(1))
+    assert mesh.n_triangles == count
+    assert round(float(min_angles(mesh).min()), 1) == angle
+    assert conformity(mesh).ok
