@@ -111,9 +111,11 @@ def _finished(before: Mesh, res: Step) -> tuple[Mesh, Families]:
     if before.edges is not None:
         edges, edge_tags = split_tagged(before.edges, before.edge_tags, res.split_keys,
                                         res.split_points)
-    used = np.zeros(mesh.n_points, dtype=bool)
-    used[mesh.triangles.reshape(-1)] = True
-    drop = res.centroids[~used[res.centroids]]
+    drop = res.centroids
+    if drop.size:
+        used = np.zeros(mesh.n_points, dtype=bool)
+        used[mesh.triangles.reshape(-1)] = True
+        drop = drop[~used[drop]]
     keep = np.ones(mesh.n_points, dtype=bool)
     keep[drop] = False
     new_id = np.append(np.cumsum(keep) - 1, -1)  # -1 stays -1

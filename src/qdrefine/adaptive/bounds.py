@@ -24,7 +24,7 @@ from ..quality import min_angles as mesh_min_angles
 from ..schemes import Scheme, get_scheme
 from .labels import MN, NO, OM, canonical_labels
 from .patterns import PARTIAL, min_angles, quality, stencil_coordinates
-from .rounds import UPGRADE
+from .rounds import UPGRADE, full_quality
 
 #: Shapes closer than this (in the normalised frame of the mapping diagram) are one class.
 SHAPE_DIGITS = 8
@@ -58,8 +58,7 @@ def transition_angles(xy: NDArray[np.float64], sch: Scheme) -> dict[str, NDArray
     corners = shape_triangles(xy)
     k = sch.stencil.per_edge
     coords = stencil_coordinates(corners, k)
-    pts, tris = partition_many(corners, sch, strict=False)
-    full = min_angles(pts[np.arange(xy.shape[0])[:, None, None], tris]).min(axis=1)
+    full = full_quality(corners, sch)
     out = {"triangle": min_angles(corners), "full": full}
     q = {code: quality(coords, k, code) for code in PARTIAL}
     if k == 2:
