@@ -14,6 +14,7 @@ on the device and, only if there are any (almost never), runs
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 from numba import cuda
@@ -24,7 +25,7 @@ from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, memory_needed
 from ..mesh import Mesh, index_dtype
 from ..predicates import COORDINATE_RANGE, check_coordinates, factor_forms
-from ..refine import as_count, check_rounding
+from ..refine import RefusedTriangle, as_count, check_rounding
 from ..schemes import Scheme, get_scheme
 from . import kernels as k
 from .numbering import THREADS, blocks, sort_edges
@@ -123,12 +124,16 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
         _check_points(pts)
     tables = _Tables(sch)
     exact = []
+    first = tri
     for level in range(1, levels + 1):
         try:
             pts, tri, tags, tagged, etags, n_hard = _level(pts, tri, tags, tagged, etags,
                                                            tables, strict, level == 1)
         except InputError as exc:
             raise ValueError(str(exc)) from None
+        except RefusedTriangle as exc:  # named by the input triangle, as on the CPU
+            raise exc.at_input(SimpleNamespace(triangles=_host(first)), level,
+                               sch.n_children) from None
         except ValueError as exc:
             raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
         exact.append(n_hard)
