@@ -167,3 +167,17 @@ def test_bad_marks_give_one_line_and_no_output(tmp_path, extra, code, message):
     assert result.stderr.startswith("qdrefine: error: "), result.stderr
     assert message in result.stderr and result.stderr.count("\n") == 1, result.stderr
     assert result.stdout == "" and not out.exists()
+
+
+def test_negative_box_and_any_case_scheme_names(tmp_path):
+    """``--mark-box -1,...`` needs no ``=``; scheme names are case-insensitive."""
+    from qdrefine.cli import main
+
+    src = tmp_path / "in.msh"
+    qdrefine.write(src, qdrefine.examples.plate_with_hole())
+    out = tmp_path / "out.msh"
+    assert main(["refine", str(src), str(out), "--scheme", "7T-QD", "--mark-box",
+                 "-1,-1,-0.5,-0.5", "-q"]) == 0
+    expected = qdrefine.refine(qdrefine.read(src), "7t-qd",
+                               marked=mark_box(qdrefine.read(src), (-1, -1, -0.5, -0.5)))
+    same_mesh(qdrefine.read(out), expected)

@@ -118,3 +118,9 @@ def test_maximum_strategy_and_bad_indicators():
         mark_dorfler([1.0], 0.0)
     with pytest.raises(ValueError, match="theta"):
         mark_maximum([1.0], 1.5)
+
+
+def test_mark_tag_of_a_missing_tag_lists_the_tags_present():
+    mesh = examples.plate_with_hole()
+    with pytest.raises(ValueError, match=r"no triangle has cell tag 7 \(cell tags: 1, 2\)"):
+        mark_tag(mesh, [1, 7])

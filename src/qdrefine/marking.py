@@ -45,10 +45,17 @@ def mark_mask(mesh: Mesh, mask: ArrayLike) -> NDArray[np.bool_]:
 
 
 def mark_tag(mesh: Mesh, tags: int | ArrayLike) -> NDArray[np.bool_]:
-    """Triangles whose cell tag is ``tags`` (one tag or several)."""
+    """Triangles whose cell tag is ``tags`` (one tag or several); a tag no triangle has is an
+    error that lists the tags present."""
     if mesh.cell_tags is None:
         raise ValueError("the mesh has no cell tags")
-    return np.isin(mesh.cell_tags, np.atleast_1d(np.asarray(tags, dtype=np.int64)))
+    wanted = np.atleast_1d(np.asarray(tags, dtype=np.int64))
+    present = np.unique(mesh.cell_tags)
+    missing = np.setdiff1d(wanted, present)
+    if missing.size:
+        raise ValueError(f"no triangle has cell tag {int(missing[0])} (cell tags: "
+                         f"{', '.join(str(int(t)) for t in present)})")
+    return np.isin(mesh.cell_tags, wanted)
 
 
 def mark_file(mesh: Mesh, path: str | PathLike[str]) -> NDArray[np.bool_]:

@@ -208,12 +208,13 @@ def scheme_names() -> tuple[str, ...]:
 
 
 def get_scheme(scheme: str | Scheme) -> Scheme:
-    """The registered scheme called ``scheme``; an unknown name raises ``ValueError``."""
+    """The registered scheme called ``scheme`` (any case: ``"7T-QD"`` is ``"7t-qd"``); an
+    unknown name raises ``ValueError``."""
     if isinstance(scheme, Scheme):
         return scheme
     try:
-        return SCHEMES[scheme]
-    except (KeyError, TypeError):
+        return SCHEMES[scheme.lower()]
+    except (KeyError, TypeError, AttributeError):
         raise ValueError(
             f"unknown scheme {scheme!r}; choose one of: {', '.join(SCHEMES)}"
         ) from None

@@ -45,7 +45,7 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = _parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_joined_negative_values(sys.argv[1:] if argv is None else argv))
     if getattr(args, "handler", None) is None:
         parser.print_help()
         return 2
@@ -67,6 +67,21 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("qdrefine: interrupted", file=sys.stderr)
         return 130
+
+
+def _joined_negative_values(argv: list[str]) -> list[str]:
+    """``--mark-box -1,0,0,1`` as ``--mark-box=-1,0,0,1``: argparse takes a value starting
+    with ``-`` for an option unless it is a single number."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] == "--mark-box" and i + 1 < len(argv) and argv[i + 1].startswith("-") \
+                and "," in argv[i + 1]:
+            out.append(f"--mark-box={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
 
 
 def _one_line(exc: BaseException) -> str:

@@ -58,8 +58,8 @@ def add_args(parser: argparse.ArgumentParser) -> None:
     mark.add_argument("--mark-tag", type=_tags, metavar="T[,T...]",
                       help="mark the triangles with these cell tags")
     mark.add_argument("--mark-box", type=_box, metavar="x0,y0,x1,y1",
-                      help="mark the triangles that meet this closed box (write "
-                           "--mark-box=-1,-1,0,0 when x0 is negative)")
+                      help="mark the triangles that meet this closed box (a negative "
+                           "x0 works as it is: --mark-box -1,-1,0,0)")
     mark.add_argument("--mark-file", metavar="F",
                       help="mark the triangles listed in F: ids of IN's triangles (0-based, "
                            "whitespace separated, '#' comments), or a .npy file of ids or "
@@ -72,7 +72,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     with _common.session():
-        get_scheme(args.scheme)  # an unknown name fails here, before any file is read
+        args.scheme = get_scheme(args.scheme).name  # any case; unknown fails before reading
         steps = _check_options(args)
         if args.dask is not None:
             return _on_dask(args)
