@@ -19,8 +19,8 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "cache_directory", "threads_for", "prefetch",
-           "prefetch_write", "unsigned"]
+__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "cache_directory", "one_thread", "threads_for",
+           "prefetch", "prefetch_write", "unsigned"]
 
 
 def _writable(folder: Path) -> bool:
@@ -66,19 +66,27 @@ PARALLEL_MIN = 32768  # triangles below which a pass runs on the calling thread 
 
 
 @contextmanager
-def threads_for(n_items: int) -> Iterator[None]:
-    """One numba thread for small inputs: waking the pool costs more than the work (and far
-    more on a busy machine, where a parallel region waits for every thread to be scheduled).
-    ``numba.set_num_threads`` is per calling thread, so this is safe under threads."""
-    if n_items >= PARALLEL_MIN:
-        yield
-        return
+def one_thread() -> Iterator[None]:
+    """Run numba's parallel regions on the calling thread only (e.g. inside Dask tasks,
+    which are the parallelism). ``numba.set_num_threads`` is per calling thread, so this is
+    safe under threads."""
     before = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
         yield
     finally:
         numba.set_num_threads(before)
+
+
+@contextmanager
+def threads_for(n_items: int) -> Iterator[None]:
+    """One numba thread for small inputs: waking the pool costs more than the work (and far
+    more on a busy machine, where a parallel region waits for every thread to be scheduled)."""
+    if n_items >= PARALLEL_MIN:
+        yield
+        return
+    with one_thread():
+        yield
 
 
 # the intrinsic's name carries the pointer type: opaque pointers from LLVM 15 on

@@ -34,15 +34,15 @@ Every write covers whole Zarr chunks, so no two tasks write the same chunk.
 
 from __future__ import annotations
 
-import contextlib
 import re
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .. import store as mesh_store
+from ..jit import one_thread
 from ..kernels import edge_points, emit
 from ..mesh import index_dtype
 from ..predicates import check_coordinates, orient_signs
@@ -558,7 +558,7 @@ def _new_points(ends: NDArray[np.float64], k: int) -> NDArray[np.float64]:
     local = np.ascontiguousarray(np.concatenate([ends[:, :2], ends[:, 2:]]))
     edges = np.stack([np.arange(u), np.arange(u, 2 * u)], axis=1).astype(index_dtype(2 * u))
     out = np.empty((2 * u + k * u, 2), dtype=np.float64)
-    with _one_numba_thread():
+    with one_thread():
         edge_points(local, edges, k, out)
     return out[2 * u:]
 
@@ -603,7 +603,7 @@ def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: in
     _check_orientation(points, local, t, a, job.path)
     u = len(vertices)
     children = np.empty((len(t) * tc, 3), dtype=index_dtype(u + k * (job.n_out - job.n)))
-    with _one_numba_thread():
+    with one_thread():
         suspect = emit(points, local, gid, k, sch.forms, sch.lut, sch.tables, children)
     if suspect.any():
         _check_rounding(job, a, t, points, local, gid, children, suspect)
@@ -683,14 +683,3 @@ def _split_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: i
     job.out["edge_tags"][a * (k + 1):b * (k + 1)] = tags
 
 
-@contextlib.contextmanager
-def _one_numba_thread() -> Iterator[None]:
-    """Run the kernels on one thread: Dask's tasks are the parallelism (thread-local)."""
-    import numba
-
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(before)
