@@ -106,8 +106,30 @@ def graded(path: Path) -> None:
             {(1, 1): "wall", (1, 2): "far"})
 
 
+def boundary_layer(path: Path, h: float = 0.08) -> None:
+    """A channel ``[0, 2] x [0, 0.5]`` with a Gmsh boundary layer (field ``BoundaryLayer``,
+    triangles) on its bottom wall: first layer 0.004 thick, growth 1.3, 0.06 in all;
+    anisotropic triangles with smallest angles of a few degrees under near-equilateral
+    ones."""
+    _start("boundary_layer")
+    loop, lines = _polygon([(0, 0), (2, 0), (2, 0.5), (0, 0.5)], h)
+    s = gmsh.model.geo.addPlaneSurface([loop])
+    gmsh.model.geo.synchronize()
+    f = gmsh.model.mesh.field
+    f.add("BoundaryLayer", 1)
+    f.setNumbers(1, "CurvesList", [lines[0]])
+    f.setNumber(1, "Size", 0.004)
+    f.setNumber(1, "Ratio", 1.3)
+    f.setNumber(1, "Thickness", 0.06)
+    f.setNumber(1, "Quads", 0)
+    f.setAsBoundaryLayer(1)
+    _finish(path, {1: [lines[0]], 2: lines[1:]}, {1: [s]},
+            {(1, 1): "wall", (1, 2): "far"})
+
+
 MESHES = {"l_shape.msh": l_shape, "plate_with_hole.msh": plate_with_hole,
-          "step.msh": step_channel, "graded.msh": graded}
+          "step.msh": step_channel, "graded.msh": graded,
+          "boundary_layer.msh": boundary_layer}
 
 
 def main(out: Path) -> None:

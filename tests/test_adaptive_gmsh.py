@@ -23,6 +23,7 @@ CASES = {
     "step/corner": ("step", lambda m, c: mark_point(m, (1.0, 0.5))),
     "graded/random": ("graded", lambda m, c: mark_random(m, 0.01, seed=c)),
     "graded/front": ("graded", lambda m, c: mark_circle(m, (0.5, 0.0), 0.1 + 0.05 * c, 0.03)),
+    "boundary_layer/random": ("boundary_layer", lambda m, c: mark_random(m, 0.01, seed=c)),
 }
 
 
@@ -146,3 +147,39 @@ def test_gmsh_examples_are_what_their_descriptions_say(name):
     assert mesh.n_triangles == count
     assert round(float(min_angles(mesh).min()), 1) == angle
     assert conformity(mesh).ok
+
+
+def test_upgrades_cannot_cascade():
+    """With an upgrade rule that asks for every upgrade (the worst case, which the thin
+    right triangles of a boundary layer come close to), the closure of one mark stops
+    ``UPGRADE_LAYERS`` layers of new triangles beyond the longest-edge closure; without that
+    limit the same rule spreads over the mesh."""
+    from qdrefine.adaptive import canonical_edges, canonical_labels, closure
+    from qdrefine.adaptive.rounds import UPGRADE_LAYERS
+    from qdrefine.kernels import number_edges
+
+    mesh = examples.gmsh_mesh("boundary_layer")
+    edges, tri_edges, _ = number_edges(mesh.triangles, mesh.n_points)
+    ce = canonical_edges(canonical_labels(mesh.points, mesh.triangles), tri_edges)
+
+    def always(t, code):
+        return np.ones(t.shape, dtype=bool)
+
+    def refined(split):
+        return split[ce].any(axis=1)
+
+    grown = []
+    for seed in range(5):
+        marked = np.zeros(mesh.n_triangles, dtype=bool)
+        marked[np.random.default_rng(seed).integers(mesh.n_triangles)] = True
+        plain = refined(closure(ce, marked, edges.shape[0])[0])
+        bounded = refined(closure(ce, marked, edges.shape[0], upgrade=always,
+                                  layers=UPGRADE_LAYERS)[0])
+        free = refined(closure(ce, marked, edges.shape[0], upgrade=always,
+                               layers=10**9)[0])
+        assert (plain <= bounded).all() and (bounded <= free).all()
+        grown.append((plain.sum(), bounded.sum(), free.sum()))
+    plain, bounded, free = np.array(grown).T
+    # the limited closure stays a small multiple of the plain one; the free one does not
+    assert (bounded <= 6 * plain).all(), grown
+    assert free.sum() >= 5 * bounded.sum(), grown

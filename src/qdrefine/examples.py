@@ -23,6 +23,8 @@ GMSH_MESHES = {
             "triangles, smallest angle 38.7 deg",
     "graded": "a square graded by a size field (MeshAdapt), 314 triangles over a factor of "
               "thirty in size, smallest angle 27.9 deg",
+    "boundary_layer": "a channel with a Gmsh boundary layer on its bottom wall, 620 "
+                      "triangles, 250 of them under 10 deg, smallest angle 0.7 deg",
 }
 
 

@@ -24,7 +24,7 @@ from ..quality import min_angles as mesh_min_angles
 from ..schemes import Scheme, get_scheme
 from .labels import MN, NO, OM, canonical_labels
 from .patterns import PARTIAL, min_angles, quality, stencil_coordinates
-from .rounds import UPGRADE, full_quality
+from .rounds import full_quality, upgraded
 
 #: Shapes closer than this (in the normalised frame of the mapping diagram) are one class.
 SHAPE_DIGITS = 8
@@ -59,11 +59,12 @@ def transition_angles(xy: NDArray[np.float64], sch: Scheme) -> dict[str, NDArray
     k = sch.stencil.per_edge
     coords = stencil_coordinates(corners, k)
     full = full_quality(corners, sch)
-    out = {"triangle": min_angles(corners), "full": full}
+    own = min_angles(corners)
+    out = {"triangle": own, "full": full}
     q = {code: quality(coords, k, code) for code in PARTIAL}
     if k == 2:
-        by_mn = q[MN | NO] >= UPGRADE * q[MN]
-        by_om = full >= UPGRADE * q[MN | OM]
+        by_mn = upgraded(q[MN], q[MN | NO], own)
+        by_om = upgraded(q[MN | OM], full, own)
     else:
         by_mn = by_om = np.zeros(xy.shape[0], dtype=bool)
     out["MN plain"], out["MN,OM plain"] = q[MN], q[MN | OM]
@@ -111,9 +112,14 @@ class QualityBound:
     red : float
         Smallest angle over the shapes of its uniform refinements up to ``levels``.
     transition : float
-        Smallest angle over the transitions of those shapes (upgrade rule included).
+        Smallest angle over the transitions of those shapes, each with or without its
+        upgrade (an upgrade is not always allowed: :data:`~qdrefine.adaptive.rounds.
+        UPGRADE_LAYERS`).
     ratio : float
         ``min(red, transition) / initial``: the bound, as a fraction of the initial angle.
+    upgraded : float
+        ``min(red, transition) / initial`` where every transition the upgrade rule asks for
+        is made: what the loops on our examples reach (docs/adaptive.md); not guaranteed.
     classes : list of int
         Number of shape classes after each level (the growth tells how close the list is to
         all shapes that refinement ever makes).
@@ -123,6 +129,7 @@ class QualityBound:
     red: float
     transition: float
     ratio: float
+    upgraded: float
     classes: list[int]
 
 
@@ -151,8 +158,11 @@ def quality_bound(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 10
     ang = transition_angles(seen, sch)
     initial = float(mesh_min_angles(mesh).min())
     red = float(ang["triangle"].min())
-    trans = float(min(ang["MN"].min(), ang["MN,NO"].min(), ang["MN,OM"].min()))
-    return QualityBound(initial, red, trans, min(red, trans) / initial, counts)
+    # an upgrade is not always allowed (rounds.Upgrades): the worst case is without it
+    trans = float(min(ang["MN plain"].min(), ang["MN,NO"].min(), ang["MN,OM plain"].min()))
+    ruled = float(min(ang["MN"].min(), ang["MN,NO"].min(), ang["MN,OM"].min()))
+    return QualityBound(initial, red, trans, min(red, trans) / initial,
+                        min(red, ruled) / initial, counts)
 
 
 def _classes(xy: NDArray[np.float64]) -> NDArray[np.float64]:

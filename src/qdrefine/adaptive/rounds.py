@@ -58,7 +58,7 @@ def close(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.int64]],
     ce = canonical_edges(labels, tri_edges)
     split, _ = closure(ce, tree.mark[leaves], edges.shape[0], presplit=pos >= 0,
                        upgrade=None if upgrades is None else
-                       lambda t, code: upgrades(leaves[t], code))
+                       lambda t, code: upgrades(leaves[t], code), layers=UPGRADE_LAYERS)
     return Closure(leaves, rows, edges, tri_edges, counts, keys, pos, labels, ce, split)
 
 
@@ -87,6 +87,24 @@ def conflicts(inp: StepInput, tree: Tree, cl: Closure) -> bool:
 #: (docs/adaptive.md, "Upgrades").
 UPGRADE = 1.6
 
+#: Upgrades may bring new triangles into a step this many layers beyond the closure of the
+#: marks (:func:`~qdrefine.adaptive.longest_edge.closure`); 2 is the least that keeps the
+#: upgrades' gain on the Gmsh examples (docs/adaptive.md, "Upgrades").
+UPGRADE_LAYERS = 2
+
+
+#: No upgrades for triangles with a smallest angle (degrees) under this: thin triangles are
+#: thin by design (boundary layers), and upgrading them refines across the layers.
+UPGRADE_MIN_ANGLE = 20.0
+
+
+def upgraded(plain: NDArray[np.float64], better: NDArray[np.float64],
+             own: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """The upgrade rule: whether a triangle whose smallest angle is ``own`` takes the
+    pattern whose smallest angle is ``better`` (with ``NO`` split) instead of the one whose
+    smallest angle is ``plain`` (degrees, arrays of one shape)."""
+    return (own >= UPGRADE_MIN_ANGLE) & (better >= UPGRADE * plain)
+
 
 class Upgrades:
     """The upgrade rule of a step, a property of each working triangle's shape alone.
@@ -97,10 +115,14 @@ class Upgrades:
     triangle). A triangle gets ``NO`` split when its ``MN`` is split and the best pattern
     with ``NO`` split is at least :data:`UPGRADE` times better than the best without
     (``MN, NO`` against ``MN``), or, once its ``OM`` is split too, when the full partition is
-    that much better than the best ``MN, OM`` pattern. The rule is monotone (more split edges
-    never undo an upgrade), so the closure has one least fixed point whatever the order of
-    its rounds. No mesh-wide floor: the comparison is on the triangle's own shape. The two
-    verdicts are computed once per tree node, on first need.
+    that much better than the best ``MN, OM`` pattern. No mesh-wide floor: the comparison is
+    on the triangle's own shape. An upgrade splits an edge of the triangle across ``NO``
+    too, which may want an upgrade of its own: so that this cannot cascade (it did, through
+    the thin right triangles of a boundary layer, where nearly every transition wants one),
+    upgrades may bring new triangles in only :data:`UPGRADE_LAYERS` layers beyond the
+    closure of the marks; further out a triangle is upgraded only where the triangle across
+    its ``NO`` is refined already. The verdicts are computed once per tree node, on first
+    need.
     """
 
     def __init__(self, inp: StepInput, tree: Tree) -> None:
@@ -125,12 +147,13 @@ class Upgrades:
         k, tree = self.inp.k, self.tree
         corners = canonical_corners(tree.points, tree.rows[nodes], tree.labels[nodes])
         coords = stencil_coordinates(corners, k)
+        own = min_angles(corners)
         if col == 0:
-            better = quality(coords, k, MN | NO) >= UPGRADE * quality(coords, k, MN)
+            verdict = upgraded(quality(coords, k, MN), quality(coords, k, MN | NO), own)
         else:
-            better = full_quality(corners, self.inp.sch) >= UPGRADE * quality(coords, k,
-                                                                              MN | OM)
-        return better.astype(np.int8)
+            verdict = upgraded(quality(coords, k, MN | OM), full_quality(corners, self.inp.sch),
+                               own)
+        return verdict.astype(np.int8)
 
 
 def full_quality(corners: NDArray[np.float64], sch: Scheme) -> NDArray[np.float64]:
