@@ -29,8 +29,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from .jit import threads_for
 from .memory import check_needed, validation_needed
-from .numbering import EdgeBuckets, sort_edges
+from .numbering import EdgeBuckets, edge_ids, sort_edges
 from .predicates import COORDINATE_RANGE, orient_signs
+from .quality import min_angles
 from .sweep import CROSSING, sweep, vertices_of
 
 __all__ = ["KINDS", "MIN_ANGLE", "Checked", "Problem", "bucket_scan", "duplicate_pairs",
@@ -784,7 +785,6 @@ def _tagged_edges(found: _Found, edges, edge_tags, topo: _Topology, n: int,
         found.add("edge-tags", f"edge {i} {tuple(found.ids(e[i]))} has a vertex index outside "
                   f"{found.base}..{n - 1 + found.base}", np.count_nonzero(bad), edge_row=i)
         return None, None
-    from .mesh import edge_ids
 
     missing = edge_ids(topo.edges, e, n) < 0
     if missing.any():
@@ -818,8 +818,6 @@ def _pinched(found: _Found, bedges: NDArray) -> None:
 
 
 def _small_angles(found: _Found, p: NDArray, t: NDArray, min_angle: float) -> None:
-    from .quality import min_angles
-
     angles = min_angles(p, t)
     small = angles < min_angle
     if small.any():

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .arguments import as_count
 from .schemes import Scheme, get_scheme
 
 if TYPE_CHECKING:
@@ -123,8 +124,6 @@ def check_memory(mesh: Mesh, scheme: str | Scheme, levels: int) -> None:
     """Raise ``MemoryError`` when refining ``mesh`` ``levels`` times would need more memory
     than :func:`available_memory` says there is ("refining M triangles L levels needs about
     X GiB; Y GiB available")."""
-    from .refine import as_count  # refine imports this module
-
     levels = as_count(levels, "levels")
     avail = available_memory()
     if levels == 0 or avail is None:

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .check import find, index_dtype
-from .numbering import EdgeBuckets
+from .numbering import EdgeBuckets, edge_ids
 
 __all__ = ["Mesh", "edge_ids", "index_dtype"]
 
@@ -205,14 +205,3 @@ def _validated(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | N
     return ({"points": found.points, "triangles": found.triangles,
              "cell_tags": found.cell_tags, "edges": found.edges, "edge_tags": found.edge_tags},
             found.buckets)
-
-
-def edge_ids(mesh_edges: NDArray, query: NDArray, n: int) -> NDArray[np.int64]:
-    """Ids of ``query (K,2)`` rows in the sorted ``mesh_edges (E,2)``; -1 where absent."""
-    key = mesh_edges[:, 0].astype(np.int64) * n + mesh_edges[:, 1]
-    lo = np.minimum(query[:, 0], query[:, 1]).astype(np.int64)
-    q = lo * n + np.maximum(query[:, 0], query[:, 1])
-    pos = np.searchsorted(key, q)
-    pos = np.minimum(pos, len(key) - 1)
-    found = key[pos] == q
-    return np.where(found, pos, -1)

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from .jit import AHEAD, prefetch, prefetch_write, threads_for, unsigned
 
-__all__ = ["EdgeBuckets", "sort_edges", "number_edges", "bucket_points", "edge_point"]
+__all__ = ["EdgeBuckets", "sort_edges", "number_edges", "bucket_points", "edge_point", "edge_ids"]
 
 
 @dataclass(frozen=True)
@@ -314,3 +314,14 @@ def edge_point(pa, pb, j, per_edge):
     if j == 0:
         return (2.0 * pa + pb) / 3.0
     return (pa + 2.0 * pb) / 3.0
+
+
+def edge_ids(mesh_edges: NDArray, query: NDArray, n: int) -> NDArray[np.int64]:
+    """Ids of ``query (K,2)`` rows in the sorted ``mesh_edges (E,2)``; -1 where absent."""
+    key = mesh_edges[:, 0].astype(np.int64) * n + mesh_edges[:, 1]
+    lo = np.minimum(query[:, 0], query[:, 1]).astype(np.int64)
+    q = lo * n + np.maximum(query[:, 0], query[:, 1])
+    pos = np.searchsorted(key, q)
+    pos = np.minimum(pos, len(key) - 1)
+    found = key[pos] == q
+    return np.where(found, pos, -1)

@@ -6,8 +6,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .predicates import check_coordinates, orient_signs
-from .refine import refine_arrays
 from .schemes import Scheme, get_scheme
+from .uniform import refine_arrays
 
 __all__ = ["partition", "partition_many"]
 

@@ -16,10 +16,13 @@ array([0.8284, 0.8284])
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .mesh import Mesh
+if TYPE_CHECKING:  # a Mesh is told by its arrays, so this module needs no import of it
+    from .mesh import Mesh
 
 __all__ = [
     "angles",
@@ -39,11 +42,12 @@ SIMILARITY_TOLERANCE = 1e-6
 
 
 def _arrays(mesh: Mesh | ArrayLike, triangles: ArrayLike | None) -> tuple[NDArray, NDArray]:
+    is_mesh = hasattr(mesh, "points") and hasattr(mesh, "triangles")
     if triangles is None:
-        if not isinstance(mesh, Mesh):
+        if not is_mesh:
             raise TypeError("give a Mesh, or points (N, 2) and triangles (M, 3)")
         return mesh.points, mesh.triangles
-    if isinstance(mesh, Mesh):
+    if is_mesh:
         raise TypeError("give a Mesh alone, or points and triangles")
     p = np.asarray(mesh, dtype=np.float64)
     t = np.asarray(triangles)

@@ -1,22 +1,20 @@
-"""Uniform conforming refinement of a whole mesh."""
+"""The public front of refinement: :func:`refine` and :func:`refine_with_parents` send a
+mesh to uniform refinement (:mod:`qdrefine.uniform`), local refinement
+(:mod:`qdrefine.adaptive`) or the GPU (:mod:`qdrefine.gpu`, imported on first use: it needs
+the optional CUDA packages)."""
 
 from __future__ import annotations
-
-import operator
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .fields import refine_point_data
-from .kernels import emit, rounding_suspects
-from .memory import check_memory
-from .mesh import Mesh, edge_ids, index_dtype
-from .numbering import EdgeBuckets, bucket_points, sort_edges
-from .predicates import orient_signs
+from .adaptive import refine_marked
+from .arguments import as_count
+from .mesh import Mesh
 from .schemes import Scheme, get_scheme
+from .uniform import RefusedTriangle, refine_uniform
 
-__all__ = ["RefusedTriangle", "refine", "refine_with_parents", "refine_arrays", "as_count",
-           "split_tagged_edges"]
+__all__ = ["refine", "refine_with_parents", "RefusedTriangle"]
 
 
 def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
@@ -52,7 +50,7 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     ValueError
         When a triangle is too thin for its distance from the origin: its new points,
         rounded to float64, would give a child with zero area or clockwise orientation
-        (:func:`check_rounding`).
+        (:func:`qdrefine.uniform.check_rounding`, :class:`RefusedTriangle`).
 
     Returns
     -------
@@ -83,7 +81,7 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
         return refine_mesh(mesh, scheme, levels, strict)
     if marked is not None:
         return refine_with_parents(mesh, scheme, levels, marked)[0]
-    return _refine_uniform(mesh, get_scheme(scheme), as_count(levels, "levels"), strict)
+    return refine_uniform(mesh, get_scheme(scheme), as_count(levels, "levels"), strict)
 
 
 def refine_with_parents(
@@ -92,183 +90,8 @@ def refine_with_parents(
 ) -> tuple[Mesh, NDArray[np.int64]]:
     """:func:`refine`, also returning ``parents (M',) int64``: the input triangle of each child."""
     if marked is not None:
-        from .adaptive import refine_marked
-
         return refine_marked(mesh, marked, scheme, levels)
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
-    out = _refine_uniform(mesh, sch, levels, strict)
+    out = refine_uniform(mesh, sch, levels, strict)
     return out, np.arange(out.n_triangles, dtype=np.int64) // sch.n_children**levels
-
-
-def _refine_uniform(mesh: Mesh, sch: Scheme, levels: int, strict: bool) -> Mesh:
-    check_memory(mesh, sch, levels)
-    out = mesh
-    for level in range(1, levels + 1):
-        try:
-            out = _refine_once(out, sch, strict)
-        except RefusedTriangle as exc:  # named by the input triangle
-            raise exc.at_input(mesh, level, sch.n_children) from None
-        except ValueError as exc:
-            raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
-    return out
-
-
-def as_count(value: object, name: str) -> int:
-    """``value`` as a non-negative integer; ``ValueError`` naming ``name`` otherwise."""
-    try:
-        count = operator.index(value)
-    except TypeError:
-        raise ValueError(f"{name} must be an integer, got {value!r}") from None
-    if count < 0:
-        raise ValueError(f"{name} must be >= 0, got {count}")
-    return count
-
-
-def refine_arrays(points: NDArray[np.float64], triangles: NDArray[np.integer], sch: Scheme,
-                  strict: bool = True, buckets: EdgeBuckets | None = None
-                  ) -> tuple[NDArray[np.float64], NDArray, EdgeBuckets]:
-    """One uniform level on plain arrays (counter-clockwise ``triangles (M, 3)`` with indices
-    into ``points (N, 2)``): ``new_points (N + k E, 2)``, ``children (M T, 3)`` (``int32``
-    while the points fit) and the sorted edges; see :func:`refine` for the numbering and
-    ``strict``. ``buckets``: :func:`~qdrefine.numbering.sort_edges` of ``triangles`` if
-    already known (validation builds them)."""
-    k = sch.stencil.per_edge
-    n = points.shape[0]
-    if buckets is None:
-        buckets = sort_edges(triangles, n)
-    n_new = n + k * buckets.n_edges
-    new_points = np.empty((n_new, 2), dtype=np.float64)
-    bucket_points(points, buckets, k, new_points)
-    children = np.empty((triangles.shape[0] * sch.n_children, 3), dtype=index_dtype(n_new))
-    suspect = emit(points, triangles, buckets.local, k, sch.forms, sch.lut, sch.tables,
-                   children, buckets)
-    if strict:
-        check_rounding(points, triangles, new_points, children, k, suspect=suspect)
-    return new_points, children, buckets
-
-
-def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
-    k = sch.stencil.per_edge
-    n = mesh.n_points
-    points, triangles, buckets = refine_arrays(mesh.points, mesh.triangles, sch, strict,
-                                               mesh._take_buckets())
-    cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
-    new_edges, edge_tags = None, None
-    edges = buckets.edges()[0] if mesh.edges is not None or mesh.point_data else None
-    if mesh.edges is not None:
-        new_edges, edge_tags = split_tagged_edges(mesh.edges, mesh.edge_tags, edges, n, k)
-        new_edges = new_edges.astype(triangles.dtype)
-    point_data = refine_point_data(mesh.point_data, edges, k) if mesh.point_data else None
-    cell_data = {name: np.repeat(value, sch.n_children, axis=0)
-                 for name, value in (mesh.cell_data or {}).items()}
-    return Mesh._trusted(points, triangles, cell_tags, new_edges, edge_tags, point_data,
-                         cell_data, mesh.physical_names)
-
-
-def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: NDArray[np.float64],
-                   children: NDArray, k: int, parents: NDArray[np.int64] | None = None,
-                   everywhere: bool = False, suspect: NDArray[np.bool_] | None = None) -> None:
-    """Raise ``ValueError`` when rounding the new points to float64 flattened or inverted a
-    child.
-
-    The decisions are exact, but the trisection points (midpoints) are stored rounded; for a
-    triangle tiny compared with its distance from the origin (a needle of width 1e-9 at 1e7,
-    say) that rounding can move a point across a child's edge. The parents that might be
-    affected are found by a certified float bound (:func:`kernels.rounding_suspects`, almost
-    never any on ordinary meshes) and only their children are checked exactly.
-
-    Parameters
-    ----------
-    points : (N, 2) float64 and triangles : (M, 3) int
-        The mesh that was refined.
-    new_points : (N', 2) float64 and children : (M', 3) int
-        The refined mesh.
-    k : int
-        New points per split edge (2 for 7T schemes, 1 for 4T): the lattice step is
-        ``1 / (k + 1)``.
-    parents : (M',) int64, optional
-        Parent of each child; default: ``M' / M`` contiguous children per parent.
-    everywhere : bool
-        Check every child exactly, not only those of suspects (for adaptive refinement, where
-        a coarsened family's children are not on its first member's lattice).
-    suspect : (M,) bool, optional
-        :func:`kernels.rounding_suspects` if already known (:func:`kernels.emit` returns it).
-    """
-    if everywhere:
-        suspect = np.ones(triangles.shape[0], dtype=bool)
-    elif suspect is None:
-        suspect = rounding_suspects(points, triangles, k + 1)
-    if not suspect.any():
-        return
-    if parents is None:
-        rows = np.flatnonzero(np.repeat(suspect, children.shape[0] // triangles.shape[0]))
-        parents = rows // (children.shape[0] // triangles.shape[0])
-    else:
-        rows = np.flatnonzero(suspect[parents])
-        parents = parents[rows]
-    signs = orient_signs(new_points, np.ascontiguousarray(children[rows]))
-    bad = np.flatnonzero(signs <= 0)
-    if bad.size:
-        i = int(parents[bad[0]])
-        corners = points[triangles[i]]
-        u, w = corners[1] - corners[0], corners[2] - corners[0]
-        edges = np.linalg.norm(corners - np.roll(corners, 1, axis=0), axis=1)
-        height = abs(u[0] * w[1] - u[1] * w[0]) / edges.max()
-        what = "zero area" if signs[bad[0]] == 0 else "clockwise orientation"
-        raise RefusedTriangle(
-            i, tuple(int(v) for v in triangles[i]), "is too thin for its distance from the "
-            f"origin (height {height:.3g}, coordinates up to {np.abs(corners).max():.3g}): "
-            f"its new points rounded to float64 give a child with {what} "
-            f"({bad.size} such children in all); translate the mesh nearer the origin or "
-            "refine less")
-
-
-class RefusedTriangle(ValueError):
-    """A triangle that refinement refuses: ``triangle`` (its row), ``vertices`` and
-    ``reason`` (the message is ``"triangle {triangle} {vertices} {reason}"``)."""
-
-    def __init__(self, triangle: int, vertices: tuple[int, ...], reason: str) -> None:
-        self.triangle, self.vertices, self.reason = triangle, vertices, reason
-        super().__init__(f"triangle {triangle} {vertices} {reason}")
-
-    def at_input(self, mesh: Mesh, level: int, n_children: int) -> RefusedTriangle:
-        """The refusal at ``level`` (counted from 1) of refining ``mesh`` uniformly, told of
-        ``mesh``'s triangle whose descendant was refused (children of row ``t`` are rows
-        ``t T .. t T + T - 1``)."""
-        if level <= 1:
-            return self
-        t = self.triangle // n_children ** (level - 1)
-        return RefusedTriangle(t, tuple(int(v) for v in mesh.triangles[t]),
-                               f"cannot be refined {level} levels: its descendant "
-                               f"{self.triangle} {self.vertices} of level {level - 1} "
-                               f"{self.reason}")
-
-
-def split_tagged_edges(tagged: NDArray, tags: NDArray, edges: NDArray, n: int, k: int,
-                       split: NDArray[np.bool_] | None = None,
-                       rank: NDArray[np.int64] | None = None) -> tuple[NDArray, NDArray]:
-    """Each tagged edge ``(a, b)`` that is split becomes ``k + 1`` edges ``a -> ... -> b``
-    with its tag; the others are kept.
-
-    ``split (E,)`` says which mesh edges get new points (default: all) and ``rank (E,)``
-    numbers them (default: the edge id): the points of edge ``g`` are ``n + rank[g] k + j``.
-    """
-    ids = edge_ids(edges, tagged, n)
-    a = tagged[:, 0].astype(np.int64)
-    b = tagged[:, 1].astype(np.int64)
-    r = ids if rank is None else rank[ids]
-    forward = a < b
-    chain = [a]
-    for j in range(k):
-        chain.append(np.where(forward, n + r * k + j, n + r * k + (k - 1 - j)))
-    chain.append(b)
-    pieces = np.stack([np.stack([chain[j], chain[j + 1]], axis=1) for j in range(k + 1)],
-                      axis=1)  # (K, k+1, 2)
-    if split is None:
-        return pieces.reshape(-1, 2), np.repeat(tags, k + 1)
-    cut = split[ids]
-    pieces[~cut, 0, 1] = b[~cut]
-    keep = np.ones((tagged.shape[0], k + 1), dtype=bool)
-    keep[~cut, 1:] = False
-    return pieces[keep], np.repeat(tags, keep.sum(axis=1))

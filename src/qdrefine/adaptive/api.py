@@ -8,9 +8,10 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..arguments import as_count
 from ..mesh import Mesh, index_dtype
-from ..refine import as_count, check_rounding
 from ..schemes import Scheme, get_scheme
+from ..uniform import check_rounding
 from .families import Families
 from .history import families_of, with_history
 from .output import split_tagged

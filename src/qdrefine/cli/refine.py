@@ -15,8 +15,9 @@ from ..io import read, write
 from ..marking import mark_box, mark_file, mark_tag
 from ..memory import check_memory
 from ..mesh import Mesh
-from ..refine import RefusedTriangle, refine
+from ..refine import refine
 from ..schemes import get_scheme, scheme_names
+from ..uniform import RefusedTriangle
 from . import _common
 
 HELP = "refine every triangle of a mesh file, or only marked ones, with a 7T (or 4T) scheme"

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from .. import store as mesh_store
-from ..refine import as_count
+from ..arguments import as_count
 from ..schemes import Scheme, get_scheme
 from .cluster import (
     PAUSE_TIMEOUT,

@@ -46,8 +46,8 @@ from ..jit import one_thread
 from ..kernels import edge_points, emit
 from ..mesh import index_dtype
 from ..predicates import check_coordinates, orient_signs
-from ..refine import split_tagged_edges
 from ..schemes import Scheme, get_scheme
+from ..uniform import split_tagged_edges
 from . import cluster
 
 if TYPE_CHECKING:
@@ -636,7 +636,7 @@ def _child_coordinates(job: _Job, points: NDArray, local: NDArray, gid: NDArray,
 
 def _check_rounding(job: _Job, a: int, t: NDArray, points: NDArray, local: NDArray,
                     gid: NDArray, children: NDArray, suspect: NDArray[np.bool_]) -> None:
-    """As :func:`qdrefine.refine.check_rounding` in memory: the children of the parents at
+    """As :func:`qdrefine.uniform.check_rounding` in memory: the children of the parents at
     risk (``suspect``, from the kernel's certified bound) must be counter-clockwise with
     their new points rounded to float64; ``ValueError`` naming the first parent otherwise."""
     tc = job.children

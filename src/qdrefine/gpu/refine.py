@@ -8,7 +8,7 @@ triangles some sign of which needs Shewchuk's expansions (none on grids; near-ti
 coordinate differences are not exact in float64) are listed and decided by a second
 kernel with a per-thread work buffer. The rounding check of ``strict`` counts the suspects
 on the device and, only if there are any (almost never), runs
-:func:`qdrefine.refine.check_rounding` on host copies.
+:func:`qdrefine.uniform.check_rounding` on host copies.
 """
 
 from __future__ import annotations
@@ -21,12 +21,13 @@ from numba import cuda
 from numba.core import config
 from numpy.typing import NDArray
 
+from ..arguments import as_count
 from ..kernels import _frame_tables
-from ..memory import MEMORY_LIMIT_VARIABLE, memory_needed
+from ..memory import MEMORY_LIMIT_VARIABLE, check_memory, memory_needed
 from ..mesh import Mesh, index_dtype
 from ..predicates import COORDINATE_RANGE, check_coordinates, factor_forms
-from ..refine import RefusedTriangle, as_count, check_rounding
 from ..schemes import Scheme, get_scheme
+from ..uniform import RefusedTriangle, check_rounding
 from . import kernels as k
 from .numbering import THREADS, blocks, sort_edges
 
@@ -157,8 +158,6 @@ def require_gpu() -> None:
 def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
                 strict: bool = True) -> Mesh:
     """:func:`qdrefine.refine` of a host mesh on the device, copies both ways included."""
-    from ..memory import check_memory
-
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
     require_gpu()
