@@ -59,7 +59,7 @@ from . import gmsh, triangle, vtu, xdmf
 from ._core import RawMesh, atomic_path, atomic_paths, permission_bits
 from .meshio_formats import read_with_meshio, write_with_meshio
 
-__all__ = ["read", "read_raw", "check_file", "write", "FORMATS", "Format", "RawMesh",
+__all__ = ["read", "read_raw", "mesh_of", "check_file", "write", "FORMATS", "Format", "RawMesh",
            "atomic_path", "atomic_paths", "permission_bits", "GMSH_VERSIONS"]
 
 PathLike = str | os.PathLike
@@ -156,7 +156,12 @@ def read(path: PathLike) -> Mesh:
         mesh (any error of :data:`qdrefine.check.KINDS`); the message starts with the file
         name (and the line or byte, where known) and names the first problem.
     """
-    raw = read_raw(path)
+    return mesh_of(read_raw(path))
+
+
+def mesh_of(raw: RawMesh) -> Mesh:
+    """The :class:`Mesh` of what a file (or a peer library's mesh) holds, checked as
+    :func:`read` checks it."""
     for problem in raw.problems:
         if problem.severity == "error":
             raise ValueError(problem.message)
@@ -167,7 +172,7 @@ def read(path: PathLike) -> Mesh:
         if problem.severity == "error":
             raise ValueError(problem.message)
         if problem.kind == "clockwise":
-            warnings.warn(problem.message, stacklevel=2)
+            warnings.warn(problem.message, stacklevel=3)
     n, m = found.points.shape[0], found.triangles.shape[0]
     try:
         point_data = _data(raw.point_data, n, "point_data", "points")

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from ._core import RawMesh, atomic_path, check_regular, from_blocks, mesh_data, split_data
 
-__all__ = ["read_with_meshio", "write_with_meshio", "TAG_KEYS"]
+__all__ = ["read_with_meshio", "write_with_meshio", "meshio_mesh", "raw_from_meshio", "TAG_KEYS"]
 
 #: Cell-data names read as tags, in order of preference.
 TAG_KEYS = ("gmsh:physical", "medit:ref", "tag", "cell_tags")
@@ -126,38 +126,60 @@ def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: b
     them)."""
     import meshio
 
-    n = mesh.n_points
-    points = np.asarray(mesh.points) if meshio_name == "medit" else \
-        np.column_stack([mesh.points, np.zeros(n)])
-    tris = np.asarray(mesh.triangles)
+    m = meshio_mesh(mesh, _WRITE_KEY.get(meshio_name, "tag"), tags=tags, data=data,
+                    flat=meshio_name == "medit")
     kwargs = dict(options or {})
     if binary is not None:
         kwargs["binary"] = binary
-    if not tags:
-        m = meshio.Mesh(points, [("triangle", tris)])
-    else:
-        cells, tag_blocks = [], []
-        k = 0 if mesh.edges is None else len(mesh.edges)
-        if k:
-            cells.append(("line", np.asarray(mesh.edges, dtype=np.int64)))
-            tag_blocks.append(np.asarray(mesh.edge_tags, dtype=np.int64))
-        cells.append(("triangle", tris))
-        cell_tags = mesh.cell_tags if mesh.cell_tags is not None else \
-            np.zeros(len(tris), np.int64)
-        tag_blocks.append(np.asarray(cell_tags, dtype=np.int64))
-        cell_data: dict[str, list[NDArray]] = {_WRITE_KEY.get(meshio_name, "tag"): tag_blocks}
-        point_data: dict[str, NDArray] = {}
-        if data:
-            point_data, tri_data = mesh_data(mesh)
-            point_data = {k: _plain(v) for k, v in point_data.items()}
-            tri_data = {k: _plain(v) for k, v in tri_data.items()}
-            for name, value in tri_data.items():
-                value = np.asarray(value)
-                pad = [np.zeros((k, *value.shape[1:]), value.dtype)] if k else []
-                cell_data[name] = [*pad, value]
-        m = meshio.Mesh(points, cells, point_data=point_data, cell_data=cell_data)
     with atomic_path(path) as tmp, quiet_meshio(path):
         meshio.write(tmp, m, file_format=meshio_name, **kwargs)
+
+
+def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
+                data: bool = True, flat: bool = False, names: bool = False):
+    """``mesh`` as a ``meshio.Mesh``: points with ``z = 0`` (``flat``: 2 coordinates), a
+    ``line`` block of the tagged edges and a ``triangle`` block, the tags as the cell data
+    ``tag_key`` (untagged triangles: 0), point data, the triangles' cell data (the edges'
+    rows zero) and, with ``names``, the physical names as ``field_data``
+    (``name -> [tag, dim]``, as meshio's Gmsh reader gives them)."""
+    import meshio
+
+    n = mesh.n_points
+    points = np.asarray(mesh.points) if flat else np.column_stack([mesh.points, np.zeros(n)])
+    tris = np.asarray(mesh.triangles)
+    if not tags:
+        return meshio.Mesh(points, [("triangle", tris)])
+    cells, tag_blocks = [], []
+    k = 0 if mesh.edges is None else len(mesh.edges)
+    if k:
+        cells.append(("line", np.asarray(mesh.edges, dtype=np.int64)))
+        tag_blocks.append(np.asarray(mesh.edge_tags, dtype=np.int64))
+    cells.append(("triangle", tris))
+    cell_tags = mesh.cell_tags if mesh.cell_tags is not None else np.zeros(len(tris), np.int64)
+    tag_blocks.append(np.asarray(cell_tags, dtype=np.int64))
+    cell_data: dict[str, list[NDArray]] = {tag_key: tag_blocks}
+    point_data: dict[str, NDArray] = {}
+    if data:
+        point_data, tri_data = mesh_data(mesh)
+        point_data = {k: _plain(v) for k, v in point_data.items()}
+        for name, value in tri_data.items():
+            value = _plain(value)
+            pad = [np.zeros((k, *value.shape[1:]), value.dtype)] if k else []
+            cell_data[name] = [*pad, value]
+    field_data = {name: np.array([tag, dim]) for (dim, tag), name in
+                  (mesh.physical_names or {}).items()} if names else None
+    return meshio.Mesh(points, cells, point_data=point_data, cell_data=cell_data,
+                       field_data=field_data)
+
+
+def raw_from_meshio(m, path: Path) -> RawMesh:
+    """What a ``meshio.Mesh`` holds as a :class:`RawMesh` (``path`` names it in messages)."""
+    points, blocks, tags, point_data, cell_data = _arrays(m)
+    raw = from_blocks(path, points, blocks, tags)
+    if len(raw.triangles):
+        split_data(raw, point_data, cell_data)
+    raw.physical_names = _names(m.field_data)
+    return raw
 
 
 def _plain(value) -> NDArray:

@@ -1,0 +1,127 @@
+"""Bridges to the libraries users hold their meshes in: meshio, scikit-fem and matplotlib.
+
+Each converter keeps what the other side can hold: tags, tagged edges, physical names,
+point and cell data (meshio); boundaries and subdomains as names (scikit-fem); and the
+plain arrays (matplotlib). The peers are imported on first use (they are optional).
+
+Examples
+--------
+>>> import qdrefine
+>>> from qdrefine import examples, interop
+>>> mesh = examples.gmsh_mesh("plate_with_hole")
+>>> back = interop.from_meshio(interop.to_meshio(mesh))
+>>> back.physical_names == mesh.physical_names and back.n_triangles == mesh.n_triangles
+True
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .io import mesh_of
+from .io._core import RawMesh
+from .io.meshio_formats import meshio_mesh, raw_from_meshio
+from .mesh import Mesh
+
+__all__ = ["to_meshio", "from_meshio", "to_skfem", "from_skfem", "to_triangulation"]
+
+#: The name a converted peer mesh has in error messages.
+_PEER = Path("<{}>")
+
+
+def to_meshio(mesh: Mesh):
+    """``mesh`` as a ``meshio.Mesh``: points ``(N, 3)`` with ``z = 0``, a ``line`` block of
+    the tagged edges and a ``triangle`` block, tags as the cell data ``gmsh:physical``
+    (untagged triangles: 0), the physical names as ``field_data`` (``name -> [tag, dim]``),
+    point data, cell data (the edge rows zero) and the refinement history as the cell data
+    ``qdrefine:transitions``; ``meshio.write`` of it to a ``.msh`` keeps all of them."""
+    return meshio_mesh(mesh, "gmsh:physical", names=True)
+
+
+def from_meshio(m) -> Mesh:
+    """The :class:`Mesh` of a ``meshio.Mesh`` (as :func:`qdrefine.read` makes it of a file):
+    triangles, ``line`` cells with tags as tagged edges, tags from the first cell data of
+    ``gmsh:physical``, ``medit:ref``, ``tag``, ``cell_tags``, physical names from
+    ``field_data``, numeric point and cell data; other cell types are an error, as in
+    files. ``ValueError`` for what is not a valid flat triangle mesh."""
+    return mesh_of(raw_from_meshio(m, Path(str(_PEER).format("meshio.Mesh"))))
+
+
+def to_skfem(mesh: Mesh):
+    """``mesh`` as a ``skfem.MeshTri`` with the same point and triangle numbering (triangle
+    rows are not sorted), tagged edges as boundaries and cell tags as subdomains, each named
+    by its physical name or ``"tag <n>"``."""
+    import skfem
+
+    m = skfem.MeshTri(np.ascontiguousarray(mesh.points.T, dtype=np.float64),
+                      np.ascontiguousarray(mesh.triangles.T, dtype=np.int64), sort_t=False)
+    names = mesh.physical_names or {}
+    boundaries, subdomains = {}, {}
+    if mesh.edges is not None and len(mesh.edges):
+        facets = _facet_ids(m.facets.T, np.asarray(mesh.edges), mesh.n_points)
+        for tag in np.unique(mesh.edge_tags):
+            boundaries[names.get((1, int(tag)), f"tag {tag}")] = \
+                np.sort(facets[mesh.edge_tags == tag])
+    if mesh.cell_tags is not None:
+        for tag in np.unique(mesh.cell_tags):
+            subdomains[names.get((2, int(tag)), f"tag {tag}")] = \
+                np.flatnonzero(mesh.cell_tags == tag)
+    if boundaries:
+        m = m.with_boundaries(boundaries, boundaries_only=False)
+    if subdomains:
+        m = m.with_subdomains(subdomains)
+    return m
+
+
+def from_skfem(m) -> Mesh:
+    """The :class:`Mesh` of a ``skfem.MeshTri`` (P1 geometry): points and triangles
+    (clockwise ones flipped, with a warning), named boundaries as tagged edges and named
+    subdomains as cell tags (tags 1, 2, ... in name order, the names as physical names;
+    triangles in no subdomain get tag 0)."""
+    points = np.ascontiguousarray(np.asarray(m.p, dtype=np.float64).T)
+    triangles = np.ascontiguousarray(np.asarray(m.t, dtype=np.int64).T)
+    if triangles.ndim != 2 or triangles.shape[1] != 3 or points.shape[1] != 2:
+        raise ValueError("from_skfem takes a 2D triangle mesh (skfem.MeshTri)")
+    raw = RawMesh(Path(str(_PEER).format("skfem.MeshTri")), points, triangles)
+    subdomains = getattr(m, "subdomains", None) or {}
+    if subdomains:
+        raw.cell_tags = np.zeros(len(triangles), dtype=np.int64)
+        for tag, name in enumerate(sorted(subdomains), start=1):
+            raw.cell_tags[np.asarray(subdomains[name], dtype=np.int64)] = tag
+            raw.physical_names[(2, tag)] = name
+    boundaries = getattr(m, "boundaries", None) or {}
+    if boundaries:
+        facets = np.asarray(m.facets, dtype=np.int64).T
+        edges, tags = [], []
+        for tag, name in enumerate(sorted(boundaries), start=1):
+            ids = np.asarray(boundaries[name], dtype=np.int64)
+            edges.append(facets[ids])
+            tags.append(np.full(len(ids), tag, dtype=np.int64))
+            raw.physical_names[(1, tag)] = name
+        raw.edges, raw.edge_tags = np.concatenate(edges), np.concatenate(tags)
+    return mesh_of(raw)
+
+
+def to_triangulation(mesh: Mesh):
+    """``mesh`` as a ``matplotlib.tri.Triangulation`` (same numbering), for ``tripcolor``,
+    ``tricontour`` and friends."""
+    from matplotlib.tri import Triangulation
+
+    return Triangulation(mesh.points[:, 0], mesh.points[:, 1], np.asarray(mesh.triangles))
+
+
+def _facet_ids(facets: NDArray, edges: NDArray, n: int) -> NDArray[np.int64]:
+    """Row of each edge ``(K, 2)`` in skfem's facets ``(F, 2)``; ``ValueError`` if one is
+    missing."""
+    key = np.sort(facets, axis=1).astype(np.int64)
+    key = key[:, 0] * n + key[:, 1]
+    order = np.argsort(key)
+    q = np.sort(edges, axis=1).astype(np.int64)
+    q = q[:, 0] * n + q[:, 1]
+    pos = np.minimum(np.searchsorted(key[order], q), len(key) - 1)
+    if not (key[order][pos] == q).all():
+        raise ValueError("a tagged edge is not an edge of the mesh")
+    return order[pos]

@@ -1,0 +1,106 @@
+"""The bridges to meshio, scikit-fem and matplotlib (qdrefine.interop) as their users
+would use them: a tagged, named mesh with point data, cell data and refinement history
+round-trips, and the peers work on what they get."""
+
+import meshio
+import numpy as np
+import pytest
+import skfem
+
+import qdrefine
+from qdrefine import examples, interop
+
+
+@pytest.fixture(scope="module")
+def mesh():
+    m = examples.gmsh_mesh("plate_with_hole")
+    x, y = m.points.T
+    m = m.replace(point_data={"f": 2 * x - y, "flag": x > 0},
+                  cell_data={"k": np.arange(m.n_triangles) * 1.5,
+                             "v": np.ones((m.n_triangles, 2), dtype=np.int32)})
+    return qdrefine.refine(m, marked=[0, 5, 9])  # with a refinement history
+
+
+def same(a, b):
+    return (a is None and b is None) or np.array_equal(a, b)
+
+
+def test_meshio_round_trip_keeps_everything(mesh):
+    m = interop.to_meshio(mesh)
+    assert isinstance(m, meshio.Mesh)
+    assert m.field_data  # physical names travel as meshio keeps Gmsh's
+    back = interop.from_meshio(m)
+    for name in ("points", "triangles", "cell_tags", "edges", "edge_tags", "transitions"):
+        assert same(getattr(back, name), getattr(mesh, name)), name
+    assert back.physical_names == mesh.physical_names
+    assert set(back.point_data) == set(mesh.point_data)
+    np.testing.assert_array_equal(back.point_data["f"], mesh.point_data["f"])
+    np.testing.assert_array_equal(back.point_data["flag"].astype(bool), mesh.point_data["flag"])
+    for name in ("k", "v"):
+        np.testing.assert_array_equal(back.cell_data[name], mesh.cell_data[name])
+    # the history still works: the next local refinement coarsens transitions first
+    assert qdrefine.refine(back, marked=[1]).n_triangles == \
+        qdrefine.refine(mesh, marked=[1]).n_triangles
+
+
+def test_meshio_mesh_written_by_meshio_reads_back(mesh, tmp_path):
+    # meshio's Gmsh writer takes fields of 1, 3 or 9 components only, and its text mode
+    # writes NumPy 2 reprs ("np.float64(-0.5)") into data sections: binary
+    mesh = mesh.replace(cell_data={"k": mesh.cell_data["k"]})
+    meshio.write(tmp_path / "m.msh", interop.to_meshio(mesh), file_format="gmsh22",
+                 binary=True)
+    back = qdrefine.read(tmp_path / "m.msh")
+    assert same(back.triangles, mesh.triangles) and same(back.cell_tags, mesh.cell_tags)
+    assert back.physical_names == mesh.physical_names
+
+
+def test_from_meshio_rejects_what_read_rejects():
+    bad = meshio.Mesh(np.zeros((3, 3)), [("triangle", np.array([[0, 1, 2]]))])
+    with pytest.raises(ValueError, match="<meshio.Mesh>"):
+        interop.from_meshio(bad)
+
+
+def test_skfem_round_trip_and_use(mesh):
+    m = interop.to_skfem(mesh)
+    assert isinstance(m, skfem.MeshTri)
+    np.testing.assert_array_equal(m.t.T, mesh.triangles)  # same numbering
+    names = mesh.physical_names
+    assert set(m.boundaries) == {names[(1, int(t))] for t in np.unique(mesh.edge_tags)}
+    assert set(m.subdomains) == {names[(2, int(t))] for t in np.unique(mesh.cell_tags)}
+    # each named boundary is exactly the tagged edges of its tag
+    for tag in np.unique(mesh.edge_tags):
+        facets = m.facets.T[m.boundaries[names[(1, int(tag))]]]
+        assert {frozenset(f) for f in facets.tolist()} == \
+            {frozenset(e) for e in mesh.edges[mesh.edge_tags == tag].tolist()}
+    # scikit-fem assembles on it: the area and a boundary's length
+    basis = skfem.Basis(m, skfem.ElementTriP1())
+    area = skfem.Functional(lambda w: 1.0 + 0 * w.x[0]).assemble(basis)
+    assert area == pytest.approx(np.abs(qdrefine.quality.areas(mesh)).sum(), rel=1e-12)
+    back = interop.from_skfem(m)
+    np.testing.assert_array_equal(back.points, mesh.points)
+    np.testing.assert_array_equal(back.triangles, mesh.triangles)
+    assert set(back.physical_names.values()) == set(names.values())
+    for (dim, tag), name in back.physical_names.items():  # tags renumbered, names kept
+        old = next(t for (d, t), n in names.items() if d == dim and n == name)
+        if dim == 2:
+            np.testing.assert_array_equal(back.cell_tags == tag, mesh.cell_tags == old)
+        else:
+            assert {frozenset(e) for e in back.edges[back.edge_tags == tag].tolist()} == \
+                {frozenset(e) for e in mesh.edges[mesh.edge_tags == old].tolist()}
+
+
+def test_from_skfem_of_a_plain_skfem_mesh():
+    m = skfem.MeshTri().refined(2)  # scikit-fem's own, sorted rows (some clockwise)
+    with pytest.warns(UserWarning, match="clockwise"):
+        mesh = interop.from_skfem(m)
+    assert mesh.n_triangles == m.t.shape[1] and mesh.cell_tags is None
+    assert (qdrefine.quality.areas(mesh) > 0).all()
+
+
+def test_triangulation(mesh):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    tri = interop.to_triangulation(mesh)
+    np.testing.assert_array_equal(tri.triangles, mesh.triangles)
+    np.testing.assert_array_equal(tri.x, mesh.points[:, 0])
