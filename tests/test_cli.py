@@ -230,3 +230,28 @@ def test_clockwise_input_is_fixed_with_a_warning(tmp_path, capsys):
     assert captured.err == f"qdrefine: warning: {path}: 1 of 1 triangles were clockwise " \
                            "and have been flipped\n"
     assert qdrefine.read(tmp_path / "o.vtk").n_triangles == 7
+
+
+def test_first_run_says_it_compiles(tmp_path, monkeypatch, capsys):
+    """A cold numba cache is told on stderr before the work starts (the first run compiles
+    for tens of seconds); a warm one says nothing."""
+    import numba
+
+    import qdrefine.cli as cli_module
+    from qdrefine.jit import compiled_before
+
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path / "cache"))
+    assert not compiled_before()
+    index = tmp_path / "cache" / "deep" / "kernels.emit-12.py311.nbi"
+    index.parent.mkdir(parents=True)
+    index.touch()
+    assert compiled_before()
+    assert not compiled_before("nowhere")
+
+    mesh = tmp_path / "m.msh"
+    qdrefine.write(mesh, examples.square(2))
+    for cold in (True, False):
+        monkeypatch.setattr(cli_module, "compiled_before", lambda cold=cold: not cold)
+        assert main(["info", str(mesh)]) == 0
+        err = capsys.readouterr().err
+        assert ("compiling the numerical kernels" in err) == cold, err

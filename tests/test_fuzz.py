@@ -41,11 +41,17 @@ ALLOWED = (ValueError, OSError, MemoryError)
 SECONDS = 20  # per example: anything slower is a hang
 
 
+class Hang(BaseException):
+    """Raised by :func:`alarm`: a ``BaseException``, so that no reader's ``except
+    Exception`` (which turns a library's errors into one line naming the file) can take a
+    hang for a refusal."""
+
+
 @contextlib.contextmanager
 def alarm(seconds: int = SECONDS):
     """Fail instead of hanging (Python-level code only; compiled kernels are bounded)."""
     def hang(signum, frame):
-        raise TimeoutError(f"no answer within {seconds} s")
+        raise Hang(f"no answer within {seconds} s")
 
     old = signal.signal(signal.SIGALRM, hang)
     signal.alarm(seconds)

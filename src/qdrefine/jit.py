@@ -19,7 +19,8 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "cache_directory", "one_thread", "threads_for",
+__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "cache_directory", "compiled_before",
+           "one_thread", "threads_for",
            "prefetch", "prefetch_write", "unsigned"]
 
 
@@ -59,6 +60,25 @@ def cache_directory() -> str | None:
 
 
 cache_directory()
+
+
+def compiled_before(module: str = "kernels") -> bool:
+    """Whether numba's cache holds compiled code of ``qdrefine.<module>`` (index files
+    ``<module>.*.nbi``) where this process would look for it: ``NUMBA_CACHE_DIR`` when
+    set, else the package's ``__pycache__`` and the user's numba cache. ``False`` on a
+    first run, when the kernels will be compiled (tens of seconds)."""
+    pattern = f"{module}.*.nbi"
+    if numba.config.CACHE_DIR:
+        places = [Path(numba.config.CACHE_DIR)]
+    else:
+        from numba.misc.appdirs import AppDirs
+
+        places = [Path(__file__).parent / "__pycache__",
+                  Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)]
+    for place in places:
+        if place.is_dir() and next(place.rglob(pattern), None) is not None:
+            return True
+    return False
 
 CHUNK = 4096  # triangles per parallel work item
 AHEAD = 8  # software prefetch distance (triangles or edges) for gathers of random rows

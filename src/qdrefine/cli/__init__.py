@@ -14,6 +14,8 @@ import importlib
 import os
 import sys
 
+from ..jit import compiled_before
+
 __all__ = ["main", "COMMANDS"]
 
 #: Subcommands in the order ``--help`` lists them (module ``qdrefine.cli.<name>``).
@@ -49,6 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "handler", None) is None:
         parser.print_help()
         return 2
+    if not compiled_before():
+        print("qdrefine: note: compiling the numerical kernels for this machine (once, about "
+              "a minute; later runs use the cache)", file=sys.stderr, flush=True)
     try:
         return int(args.handler(args))
     except BrokenPipeError:  # e.g. `qdrefine info x.msh | head`: not an error of ours

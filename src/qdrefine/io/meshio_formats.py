@@ -52,9 +52,31 @@ def unreadable(path: Path, name: str, exc: BaseException) -> ValueError:
     return ValueError(f"{path}: not a readable {name} file ({detail[:200]})")
 
 
+#: Bytes of a file's head that :func:`_check_head` looks at.
+HEAD = 1 << 20
+
+
+def _check_head(path: Path, meshio_name: str) -> None:
+    """Refuse a header that meshio's reader would wait on forever: its OFF and PLY readers
+    skip blank and comment lines with a loop that never ends at the end of the file (a
+    truncated header, or a file that is only ``OFF`` / ``ply``)."""
+    if meshio_name not in ("off", "ply"):
+        return
+    with open(path, "rb") as f:
+        head = f.read(HEAD)
+    lines = head.split(b"\n")
+    if meshio_name == "ply":
+        if not any(line.strip() == b"end_header" for line in lines[:-1]):
+            raise ValueError(f"{path}: the file ends early (no end_header line in its "
+                             f"first {HEAD} bytes)")
+    elif not any(line.strip() and not line.strip().startswith(b"#") for line in lines[1:]):
+        raise ValueError(f"{path}: the file ends early (nothing after the OFF line)")
+
+
 def read_with_meshio(path: Path, meshio_name: str, name: str) -> RawMesh:
     """The content of ``path`` read by meshio as ``meshio_name``."""
     check_regular(path)
+    _check_head(path, meshio_name)
     import meshio
 
     try:

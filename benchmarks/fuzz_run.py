@@ -1,0 +1,126 @@
+"""A long fuzzing run of the readers: the mutations of ``tests/test_fuzz.py`` (byte flips,
+truncations, deleted, duplicated and inserted lines and bytes, replaced number tokens; one
+to three per file) applied to a valid file of every format, many times per format.
+
+Each mutated file is read with :func:`qdrefine.read` under an alarm and sorted into
+outcomes: ``read`` (a valid mesh: :func:`qdrefine.check.find` finds no error),
+``refused`` (``ValueError`` / ``OSError`` / ``MemoryError`` whose message starts with the
+file name), and the failures the issue counts: ``hang`` (no answer within the alarm),
+``traceback`` (any other exception), ``unnamed`` (a refusal that does not name the file),
+``invalid`` (a mesh that does not pass the checks), ``shortened`` (a file *truncated* by
+the mutation read as a mesh with fewer triangles), ``input changed``. A deleted line that
+leaves a smaller valid file (an OBJ face, a whole STL facet is not one line) is counted as
+``smaller after a deleted line``: formats without declared counts cannot tell.
+
+Usage::
+
+    python benchmarks/fuzz_run.py [--per-format 10000] [--json benchmarks/results/fuzz-DATE.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import platform
+import sys
+import tempfile
+import time
+import warnings
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).parents[1]
+sys.path.insert(0, str(ROOT / "tests"))  # the mutations and seed files of the fuzz tests
+
+import qdrefine  # noqa: E402
+from qdrefine import check  # noqa: E402
+from test_fuzz import ALLOWED, MAIN, SEEDS, TOKENS, Hang, alarm, mutate  # noqa: E402
+
+KINDS = ["flip", "truncate", "delete-line", "duplicate-line", "token", "insert"]
+FAILURES = ("hang", "traceback", "unnamed", "invalid", "shortened", "input changed")
+
+
+def run_format(name: str, count: int, seconds: int) -> tuple[Counter, list[str]]:
+    rng = np.random.default_rng(sorted(SEEDS).index(name))
+    outcomes: Counter = Counter()
+    examples: list[str] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        for name_, data in SEEDS[name].items():
+            (folder / name_).write_bytes(data)
+        path = folder / MAIN[name]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            seed_triangles = qdrefine.read(path).n_triangles
+        for _ in range(count):
+            files = dict(SEEDS[name])
+            target = sorted(files)[int(rng.integers(len(files)))]
+            ops = [(KINDS[int(rng.integers(len(KINDS)))], int(rng.integers(2**31)),
+                    int(rng.integers(256)), TOKENS[int(rng.integers(len(TOKENS)))])
+                   for _ in range(int(rng.integers(1, 4)))]
+            files[target] = mutate(files[target], ops)
+            for p in folder.iterdir():
+                p.unlink()
+            for name_, data in files.items():
+                (folder / name_).write_bytes(data)
+            outcome = _read(path, seconds, ops, seed_triangles)
+            if {p.name: p.read_bytes() for p in folder.iterdir()} != files:
+                outcome = "input changed"
+            outcomes[outcome] += 1
+            if outcome in FAILURES and len(examples) < 5:
+                examples.append(f"{outcome}: {ops}")
+    return outcomes, examples
+
+
+def _read(path: Path, seconds: int, ops, seed_triangles: int) -> str:
+    try:
+        with alarm(seconds), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                mesh = qdrefine.read(path)
+            except ALLOWED as exc:
+                return "refused" if str(exc).startswith(str(path.with_suffix(""))) \
+                    else "unnamed"
+    except Hang:
+        return "hang"
+    except Exception:  # noqa: BLE001 - anything else is a failure to count
+        return "traceback"
+    found = check.find(mesh.points, mesh.triangles, mesh.cell_tags, mesh.edges,
+                       mesh.edge_tags)
+    if not found.ok:
+        return "invalid"
+    if mesh.n_triangles < seed_triangles:
+        kinds = {op[0] for op in ops}
+        if "truncate" in kinds:
+            return "shortened"
+        if "delete-line" in kinds:
+            return "smaller after a deleted line"
+    return "read"
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--per-format", type=int, default=10_000)
+    parser.add_argument("--seconds", type=int, default=10, help="alarm per file")
+    parser.add_argument("--formats", default=",".join(sorted(SEEDS)))
+    parser.add_argument("--json", type=Path, default=None)
+    args = parser.parse_args(argv)
+    date = datetime.date.today().isoformat()
+    result = {"date": date, "machine": platform.platform(), "per_format": args.per_format,
+              "alarm_seconds": args.seconds, "formats": {}}
+    for name in args.formats.split(","):
+        t = time.perf_counter()
+        outcomes, examples = run_format(name, args.per_format, args.seconds)
+        result["formats"][name] = {"outcomes": dict(outcomes), "failure_examples": examples,
+                                   "seconds": time.perf_counter() - t}
+        print(name, dict(outcomes), f"{time.perf_counter() - t:.0f} s", flush=True)
+    path = args.json or ROOT / "benchmarks" / "results" / f"fuzz-{date}.json"
+    path.write_text(json.dumps(result, indent=1))
+    print("wrote", path)
+
+
+if __name__ == "__main__":
+    main()
