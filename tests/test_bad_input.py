@@ -489,3 +489,31 @@ def test_binary_stl_refuses_to_round_coordinates(tmp_path):
     assert np.array_equal(qdrefine.read(tmp_path / "m.stl").points, exact.points)
     qdrefine.write(tmp_path / "t.stl", mesh)  # text STL keeps every digit
     assert qdrefine.read(tmp_path / "t.stl").n_triangles == 1
+
+
+def test_sigterm_during_a_write_leaves_nothing_behind(tmp_path):
+    """``kill`` (SIGTERM) while the output is being written: exit 143, one line, no
+    temporary file, no output, the input untouched (as with Ctrl-C)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    src = tmp_path / "in.msh"
+    qdrefine.write(src, examples.plate_with_hole())
+    before = src.read_bytes()
+    out = tmp_path / "out.msh"
+    proc = subprocess.Popen([sys.executable, "-m", "qdrefine", "refine", str(src), str(out),
+                             "--levels", "4"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    deadline = time.monotonic() + 300
+    while proc.poll() is None and not list(tmp_path.glob(".out.*")) \
+            and time.monotonic() < deadline:
+        time.sleep(0.001)
+    assert proc.poll() is None, "the write finished before the signal: make it larger"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == "qdrefine: terminated", err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.msh"]
+    assert src.read_bytes() == before

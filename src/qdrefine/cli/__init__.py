@@ -14,6 +14,7 @@ import importlib
 import os
 import sys
 
+from ..interrupts import TERMINATED, sigterm_as_interrupt
 from ..jit import compiled_before
 
 __all__ = ["main", "COMMANDS"]
@@ -55,7 +56,8 @@ def main(argv: list[str] | None = None) -> int:
         print("qdrefine: note: compiling the numerical kernels for this machine (once, about "
               "a minute; later runs use the cache)", file=sys.stderr, flush=True)
     try:
-        return int(args.handler(args))
+        with sigterm_as_interrupt():  # a kill cleans up as Ctrl-C does: no temporary files
+            return int(args.handler(args))
     except BrokenPipeError:  # e.g. `qdrefine info x.msh | head`: not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
@@ -69,9 +71,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"qdrefine: error: this needs the optional package '{top}': "
               f"pip install 'qdrefine[{OPTIONAL[top]}]'", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("qdrefine: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        terminated = str(exc) == TERMINATED
+        print(f"qdrefine: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        return 143 if terminated else 130
 
 
 def _joined_negative_values(argv: list[str]) -> list[str]:

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from .. import store as mesh_store
 from ..arguments import as_count
+from ..interrupts import sigterm_as_interrupt
 from ..schemes import Scheme, get_scheme
 from .cluster import (
     PAUSE_TIMEOUT,
@@ -31,7 +32,6 @@ from .cluster import (
     local_client,
     min_worker_memory,
     quiet_shuffle_logs,
-    sigterm_as_interrupt,
 )
 from .level import MAX_POINTS, Level, copy_store
 

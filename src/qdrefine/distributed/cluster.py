@@ -11,8 +11,6 @@ import contextlib
 import importlib.util
 import logging
 import os
-import signal
-import threading
 import time
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
@@ -23,7 +21,7 @@ if TYPE_CHECKING:
     from distributed import Client
 
 __all__ = ["local_client", "min_worker_memory", "ClusterError", "Reporter", "connect",
-           "compute", "check_workers", "sigterm_as_interrupt", "quiet_shuffle_logs"]
+           "compute", "check_workers", "quiet_shuffle_logs"]
 
 Progress = Callable[[str, int, int], Any]
 
@@ -116,24 +114,6 @@ def quiet_shuffle_logs() -> Iterator[None]:
         yield
     finally:
         logger.setLevel(level)
-
-
-@contextlib.contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM (what SLURM and Kubernetes send) raises ``KeyboardInterrupt`` like Ctrl-C,
-    so the run cleans up the same way (main thread only; elsewhere nothing changes)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def interrupt(signum: int, frame: Any) -> None:  # noqa: ARG001
-        raise KeyboardInterrupt("terminated (SIGTERM)")
-
-    before = signal.signal(signal.SIGTERM, interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, before)
 
 
 def check_workers(client: Client, source: str, target: str, chunk_size: int) -> int:
