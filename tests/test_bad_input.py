@@ -89,6 +89,19 @@ CASES: dict[str, Case] = {
                                  "c.ply", "c.ply: the file ends early"),
     "OFF file that is only 'OFF'": Case({"t.off": "OFF\n"}, "t.off",
                                         "t.off: the file ends early"),
+    "OBJ cut at a line end (counts in its header)": Case(
+        {"c.obj": "# Vertices: 4\n# Faces: 2\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\n"},
+        "c.obj", "c.obj: the file holds 1 face, its header announces 2"),
+    "ASCII STL cut between two facets": Case(
+        {"c.stl": "solid s\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n"
+                  "   vertex 1 0 0\n   vertex 0 1 0\n  endloop\n endfacet\n"},
+        "c.stl", "c.stl: the file ends early"),
+    "ASCII PLY with more lines than its header announces": Case(
+        {"m.ply": "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\n"
+                  "property double y\nproperty double z\nelement face 1\n"
+                  "property list uint8 int32 vertex_indices\nend_header\n0 0 0\n1 0 0\n"
+                  "0 1 0\n3 0 1 2\n3 0 2 1\n"},
+        "m.ply", "m.ply: the file holds 5 data lines after end_header, its header announces 4"),
     "corrupt file": Case({"junk.vtu": np.random.default_rng(1).bytes(400)}, "junk.vtu",
                          "junk.vtu: not a readable VTK XML"),
     "no triangles": Case({"in.msh": msh22(SQ, lines=[(0, 1)])}, "in.msh",

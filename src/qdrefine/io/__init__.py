@@ -55,7 +55,7 @@ import numpy as np
 
 from ..check import MIN_ANGLE, Checked, find
 from ..mesh import Mesh, _data, _names, _transitions
-from . import gmsh, triangle, vtu, xdmf
+from . import gmsh, obj, triangle, vtu, xdmf
 from ._core import RawMesh, atomic_path, atomic_paths, permission_bits
 from .meshio_formats import read_with_meshio, write_with_meshio
 
@@ -92,6 +92,7 @@ _GMSH = Format("Gmsh MSH", "gmsh", True, False, True, True)
 _VTU = Format("VTK XML unstructured grid", "vtu", True, True, True, True)
 _XDMF = Format("XDMF", "xdmf", True, None, True, True)
 _TRIANGLE = Format("Triangle .node/.ele/.poly", None, True)
+_OBJ = Format("Wavefront OBJ", "obj", False)
 
 #: Known extensions (lower case) and their formats.
 FORMATS: dict[str, Format] = {
@@ -102,7 +103,7 @@ FORMATS: dict[str, Format] = {
     ".xmf": _XDMF,
     ".mesh": Format("Medit", "medit", True),
     ".off": Format("OFF", "off", False),
-    ".obj": Format("Wavefront OBJ", "obj", False),
+    ".obj": _OBJ,
     ".stl": Format("STL", "stl", False, False),
     ".ply": Format("PLY", "ply", False, True),
     ".node": _TRIANGLE,
@@ -112,7 +113,7 @@ FORMATS: dict[str, Format] = {
 
 _READERS: dict[str, Callable[[Path], RawMesh]] = {
     _GMSH.name: gmsh.read, _VTU.name: vtu.read, _XDMF.name: xdmf.read,
-    _TRIANGLE.name: triangle.read,
+    _TRIANGLE.name: triangle.read, _OBJ.name: obj.read,
 }
 
 
@@ -264,6 +265,8 @@ def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
         xdmf.write(path, mesh)
     elif fmt is _TRIANGLE:
         triangle.write(path, mesh)
+    elif fmt is _OBJ:
+        obj.write(path, mesh)
     else:
         write_with_meshio(path, mesh, fmt.meshio, tags=fmt.tags, data=fmt.data,
                           binary=binary)

@@ -168,7 +168,15 @@ def _read(f: _File) -> RawMesh:
         if handler is None:
             end = f.end_of(name, start)
         else:
-            end = handler(f, c, start)
+            try:
+                end = handler(f, c, start)
+            except GmshError:
+                raise
+            except (OverflowError, ValueError) as exc:  # e.g. int() of an inf or nan count
+                if str(exc).startswith(str(f.path)):
+                    raise
+                raise f.error(start, f"${name} holds a count or tag that is not an integer "
+                                     f"({exc})") from None
         pos = _expect_end(f, name, end)
         if c.version == "4.0":
             return _meshio_fallback(f.path)
@@ -188,6 +196,14 @@ def _expect_end(f: _File, name: str, pos: int) -> int:
         raise f.error(pos, f"expected $End{name}"
                            + (" (the file ends early)" if pos >= len(data) else ""))
     return pos + len(tag)
+
+
+def _int(value: float) -> int:
+    """A count or tag read as a float: an integer of 32 bits (``ValueError`` otherwise, which
+    the section reader turns into one line naming the file)."""
+    if not np.isfinite(value) or value != np.round(value) or abs(value) >= 2**31:
+        raise ValueError(f"expected an integer of 32 bits, got {value:g}")
+    return int(value)
 
 
 def _mesh_format(f: _File, c: _Content, start: int) -> int:
@@ -246,13 +262,13 @@ def _entities(f: _File, c: _Content, start: int) -> int:
     i = 4
     try:
         for dim in range(4):
-            for _ in range(int(v[dim])):
-                tag = int(v[i])
+            for _ in range(_int(v[dim])):
+                tag = _int(v[i])
                 i += 4 if dim == 0 else 7
-                n_phys = int(v[i])
+                n_phys = _int(v[i])
                 phys = v[i + 1:i + 1 + n_phys]
                 i += 1 + n_phys
-                c.entities[(dim, tag)] = int(phys[0]) if n_phys else 0
+                c.entities[(dim, tag)] = _int(phys[0]) if n_phys else 0
                 if dim > 0:
                     i += 1 + int(v[i])
     except (IndexError, ValueError, OverflowError):
@@ -632,6 +648,10 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
         blocks.append((name, rows))
         block_tags.append(np.broadcast_to(np.asarray(phys, np.int64), (len(rows),)))
         element_ids.append(ids)
+    if element_ids:
+        twice = _first_duplicate(np.concatenate(element_ids).astype(np.int64))
+        if twice is not None:
+            raise GmshError(f"element tag {twice} is given twice in $Elements")
     # sort each kind by element tag (keeps the order of files written grouped by entity)
     by_kind: dict[str, list[int]] = {}
     for i, (name, _) in enumerate(blocks):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import io as io_module
+import os
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -52,31 +53,66 @@ def unreadable(path: Path, name: str, exc: BaseException) -> ValueError:
     return ValueError(f"{path}: not a readable {name} file ({detail[:200]})")
 
 
-#: Bytes of a file's head that :func:`_check_head` looks at.
+#: Bytes of a file's head that :func:`_check_frame` looks at for a header.
 HEAD = 1 << 20
 
 
-def _check_head(path: Path, meshio_name: str) -> None:
-    """Refuse a header that meshio's reader would wait on forever: its OFF and PLY readers
-    skip blank and comment lines with a loop that never ends at the end of the file (a
-    truncated header, or a file that is only ``OFF`` / ``ply``)."""
-    if meshio_name not in ("off", "ply"):
-        return
+def _check_frame(path: Path, meshio_name: str) -> int | None:
+    """Refuse what meshio's readers would wait on forever or read short without a word:
+
+    * OFF and PLY headers cut short (their readers skip blank and comment lines with a loop
+      that never ends at the end of the file: a file that is only ``OFF`` or ``ply``);
+    * an ASCII PLY file with more data lines than its header announces (the rest would be
+      dropped);
+    * an ASCII STL file without its closing ``endsolid`` line (cut between two facets, it
+      would read as a smaller mesh).
+
+    Returns the number of faces a PLY header announces (as many triangles must be read).
+    """
+    if meshio_name not in ("off", "ply", "stl"):
+        return None
     with open(path, "rb") as f:
         head = f.read(HEAD)
+        size = f.seek(0, os.SEEK_END)
+        if meshio_name == "stl":
+            f.seek(max(size - 1024, 0))
+            tail = f.read()
+    if meshio_name == "stl":
+        binary = size >= 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little")
+        last = tail.rstrip().rsplit(b"\n", 1)[-1].strip()
+        if not binary and not last.startswith(b"endsolid"):
+            raise ValueError(f"{path}: the file ends early (not a binary STL of its size, "
+                             "and no endsolid line at its end)")
+        return None
     lines = head.split(b"\n")
-    if meshio_name == "ply":
-        if not any(line.strip() == b"end_header" for line in lines[:-1]):
-            raise ValueError(f"{path}: the file ends early (no end_header line in its "
-                             f"first {HEAD} bytes)")
-    elif not any(line.strip() and not line.strip().startswith(b"#") for line in lines[1:]):
-        raise ValueError(f"{path}: the file ends early (nothing after the OFF line)")
+    if meshio_name == "off":
+        if not any(line.strip() and not line.strip().startswith(b"#") for line in lines[1:]):
+            raise ValueError(f"{path}: the file ends early (nothing after the OFF line)")
+        return None
+    end = next((i for i, line in enumerate(lines[:-1]) if line.strip() == b"end_header"), None)
+    if end is None:
+        raise ValueError(f"{path}: the file ends early (no end_header line in its first "
+                         f"{HEAD} bytes)")
+    header = [line.split() for line in lines[:end]]
+    faces = next((int(w[2]) for w in header if len(w) == 3 and w[:2] == [b"element", b"face"]
+                  and w[2].isdigit()), None)
+    if [b"format", b"ascii", b"1.0"] not in header:
+        return faces
+    announced = sum(int(w[2]) for w in header if len(w) == 3 and w[0] == b"element"
+                    and w[2].isdigit())
+    with open(path, "rb") as f:
+        body = f.read().split(b"end_header", 1)[1]
+    found = sum(1 for line in body.split(b"\n") if line.strip())
+    if found > announced:
+        raise ValueError(f"{path}: the file holds {found} data lines after end_header, its "
+                         f"header announces {announced}")
+    return faces
 
 
 def read_with_meshio(path: Path, meshio_name: str, name: str) -> RawMesh:
     """The content of ``path`` read by meshio as ``meshio_name``."""
     check_regular(path)
-    _check_head(path, meshio_name)
+    faces = _check_frame(path, meshio_name)
     import meshio
 
     try:
@@ -90,6 +126,10 @@ def read_with_meshio(path: Path, meshio_name: str, name: str) -> RawMesh:
         points, blocks, tags, point_data, cell_data = _arrays(m)
     except (TypeError, ValueError, IndexError, KeyError, AttributeError) as exc:
         raise unreadable(path, name, exc) from None  # meshio returned malformed data
+    triangles = sum(len(data) for kind, data in blocks if kind == "triangle")
+    if faces is not None and triangles != faces:
+        raise ValueError(f"{path}: {triangles} triangles read, the header announces {faces} "
+                         "faces (a face of other than 3 vertices, or a miscount)")
     raw = from_blocks(path, points, blocks, tags)
     if len(raw.triangles):
         split_data(raw, point_data, cell_data)
