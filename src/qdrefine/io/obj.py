@@ -42,12 +42,19 @@ def read(path: Path) -> RawMesh:
     raw = read_with_meshio(path, "obj", "Wavefront OBJ")
     counts = {}
     with open(path, "rb") as f:
-        for line in f:
-            if not line.startswith(b"#"):
+        header = f.readline()
+        f.seek(0)
+        for line in f:  # the header: up to the first vertex or face line
+            if line[:1] in (b"v", b"f"):
                 break
             m = _COUNT.match(line.strip())
             if m:
                 counts[m.group(1).decode()] = int(m.group(2))
+    ours = b"written by qdrefine" in header
+    if (counts or ours) and len(counts) < 2:
+        missing = ", ".join(f"# {n}" for n in ("Vertices", "Faces") if n not in counts)
+        raise ValueError(f"{path}: its header lacks {missing} (the other count is there, or "
+                         "qdrefine wrote it): damaged?")
     found = {"Vertices": len(raw.points), "Faces": len(raw.triangles)}
     for name, announced in counts.items():
         if found[name] != announced:
