@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 import qdrefine
+from cli_runner import cli, finish, start
 from qdrefine import Mesh, check, examples
 from qdrefine.memory import MEMORY_LIMIT_VARIABLE, memory_needed
 
@@ -182,20 +183,10 @@ def _make(tmp_path: Path, case: Case) -> Path:
     return tmp_path / case.input
 
 
-def start(*args, env=None) -> subprocess.Popen:
-    """Start ``python -m qdrefine ARGS`` (the real entry point)."""
-    return subprocess.Popen([sys.executable, "-m", "qdrefine", *map(str, args)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=None if env is None else os.environ | env)
 
 
-def finish(process: subprocess.Popen) -> subprocess.CompletedProcess:
-    out, err = process.communicate(timeout=300)
-    return subprocess.CompletedProcess(process.args, process.returncode, out, err)
 
 
-def cli(*args, env=None) -> subprocess.CompletedProcess:
-    return finish(start(*args, env=env))
 
 
 @pytest.mark.parametrize("name", list(CASES))
@@ -508,24 +499,20 @@ def test_sigterm_during_a_write_leaves_nothing_behind(tmp_path):
     """``kill`` (SIGTERM) while the output is being written: exit 143, one line, no
     temporary file, no output, the input untouched (as with Ctrl-C)."""
     import signal
-    import subprocess
-    import sys
     import time
 
     src = tmp_path / "in.msh"
     qdrefine.write(src, examples.plate_with_hole())
     before = src.read_bytes()
     out = tmp_path / "out.msh"
-    proc = subprocess.Popen([sys.executable, "-m", "qdrefine", "refine", str(src), str(out),
-                             "--levels", "4"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    proc = start("refine", src, out, "--levels", "4")
     deadline = time.monotonic() + 300
     while proc.poll() is None and not list(tmp_path.glob(".out.*")) \
             and time.monotonic() < deadline:
         time.sleep(0.001)
     assert proc.poll() is None, "the write finished before the signal: make it larger"
     proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=120)
+    err = finish(proc, timeout=120).stderr
     assert proc.returncode == 143, err
     assert err.strip().splitlines()[-1] == "qdrefine: terminated", err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.msh"]

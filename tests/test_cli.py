@@ -1,24 +1,19 @@
 """The command line: every subcommand through the real entry point, and its error paths."""
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import qdrefine
+from cli_runner import cli
 from qdrefine import examples, quality
 from qdrefine.cli import main
 
 DATA = Path(__file__).parent / "data"
 
 
-def cli(*args, cwd=None):
-    """Run ``python -m qdrefine ARGS`` (the real entry point) and return the result."""
-    return subprocess.run([sys.executable, "-m", "qdrefine", *map(str, args)],
-                          capture_output=True, text=True, check=False, cwd=cwd)
 
 
 def test_python_dash_m_runs():

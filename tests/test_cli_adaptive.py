@@ -2,14 +2,13 @@
 the real entry point, compared with the Python API."""
 
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import qdrefine
+from cli_runner import cli
 from qdrefine.adaptive import refine_marked
 from qdrefine.marking import mark_box, mark_tag
 from qdrefine.quality import areas
@@ -19,10 +18,6 @@ DATA = Path(__file__).parent / "data"
 SRC = DATA / "two_regions_22.msh"
 
 
-def cli(*args):
-    """Run ``python -m qdrefine ARGS`` and return the result."""
-    return subprocess.run([sys.executable, "-m", "qdrefine", *map(str, args)],
-                          capture_output=True, text=True, check=False)
 
 
 def api(mesh, mark, cycles=1, scheme="7t-qd"):

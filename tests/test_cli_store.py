@@ -6,13 +6,9 @@ import sys
 import numpy as np
 
 import qdrefine
+from cli_runner import cli
 from qdrefine import examples, store
 from qdrefine.cli import main
-
-
-def cli(*args):
-    return subprocess.run([sys.executable, "-m", "qdrefine", *map(str, args)],
-                          capture_output=True, text=True, timeout=300)
 
 
 def _same(a: qdrefine.Mesh, b: qdrefine.Mesh) -> None:
