@@ -139,7 +139,7 @@ def test_sigterm_is_handled_like_ctrl_c(tmp_path):
     time.sleep(0.5)
     proc.send_signal(signal.SIGTERM)  # what SLURM and Kubernetes send first
     _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130 and err.splitlines()[-1] == "qdrefine: interrupted", err
+    assert proc.returncode == 143 and err.splitlines()[-1] == "qdrefine: terminated", err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.zarr", "out.zarr"]
     got = store.to_mesh(tmp_path / "out.zarr")
     assert np.array_equal(got.points, old.points) and np.array_equal(got.triangles,

@@ -302,7 +302,8 @@ def test_refinement_checks_catch_rounded_collapse():
 
 def test_page_is_generated_from_the_committed_results():
     """docs/robustness.md is exactly what the report code makes of results.json (regenerate
-    both with ``python benchmarks/robustness/study.py``), and its figure exists."""
+    both with ``python benchmarks/robustness/study.py``), bad_input.json and the latest
+    fuzzing run, and its figure exists."""
     import json
 
     root = Path(__file__).resolve().parents[1]
@@ -311,8 +312,14 @@ def test_page_is_generated_from_the_committed_results():
                            root / "benchmarks/robustness/results.json")
     hostile = json.loads((root / "benchmarks/robustness/bad_input.json").read_text())
     # section 4 (python benchmarks/robustness/bad_input.py) from its own results
-    assert bad_input.splice(page, bad_input.section(hostile)) == (
-        root / "docs/robustness.md").read_text()
+    page = bad_input.splice(page, bad_input.section(hostile))
+    # section 5 (python benchmarks/fuzz_run.py) from the latest fuzzing run
+    import fuzz_run
+
+    latest = sorted((root / "benchmarks/results").glob("fuzz-*.json"))[-1]
+    page = bad_input.splice(page, fuzz_run.section(json.loads(latest.read_text()), latest.name),
+                            fuzz_run.START, fuzz_run.END)
+    assert page == (root / "docs/robustness.md").read_text()
     assert (root / "docs/img/robustness/scipy_failures.png").stat().st_size > 10_000
 
 

@@ -199,10 +199,11 @@ def keep(path: Path, page: str) -> str:
     return page
 
 
-def splice(page: str, part: str) -> str:
-    """``page`` with its hostile-input section replaced by ``part`` (appended if absent)."""
-    if START in page and END in page:
-        return page[:page.index(START)] + part + page[page.index(END) + len(END):]
+def splice(page: str, part: str, start: str = START, end: str = END) -> str:
+    """``page`` with its section between the markers ``start`` and ``end`` (default: the
+    hostile-input section) replaced by ``part`` (appended if absent)."""
+    if start in page and end in page:
+        return page[:page.index(start)] + part + page[page.index(end) + len(end):]
     return page.rstrip("\n") + "\n\n" + part + "\n"
 
 
