@@ -36,9 +36,10 @@ ROOT = Path(__file__).parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the mutations and seed files of the fuzz tests
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from robustness.bad_input import splice  # noqa: E402
+
 import qdrefine  # noqa: E402
 from qdrefine import check  # noqa: E402
-from robustness.bad_input import splice  # noqa: E402
 from test_fuzz import ALLOWED, MAIN, SEEDS, TOKENS, Hang, alarm, mutate  # noqa: E402
 
 START = "<!-- fuzzing run: written by benchmarks/fuzz_run.py -->"
