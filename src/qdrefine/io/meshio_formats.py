@@ -100,8 +100,9 @@ def _check_frame(path: Path, meshio_name: str) -> int | None:
         return faces
     announced = sum(int(w[2]) for w in header if len(w) == 3 and w[0] == b"element"
                     and w[2].isdigit())
-    with open(path, "rb") as f:
-        body = f.read().split(b"end_header", 1)[1]
+    with open(path, "rb") as f:  # the data: after the end_header line itself
+        f.seek(sum(len(line) + 1 for line in lines[:end + 1]))
+        body = f.read()
     found = sum(1 for line in body.split(b"\n") if line.strip())
     if found > announced:
         raise ValueError(f"{path}: the file holds {found} data lines after end_header, its "
