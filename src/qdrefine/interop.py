@@ -25,6 +25,7 @@ from .io import mesh_of
 from .io._core import RawMesh
 from .io.meshio_formats import meshio_mesh, raw_from_meshio
 from .mesh import Mesh
+from .numbering import edge_ids
 
 __all__ = ["to_meshio", "from_meshio", "to_skfem", "from_skfem", "to_triangulation"]
 
@@ -116,12 +117,9 @@ def to_triangulation(mesh: Mesh):
 def _facet_ids(facets: NDArray, edges: NDArray, n: int) -> NDArray[np.int64]:
     """Row of each edge ``(K, 2)`` in skfem's facets ``(F, 2)``; ``ValueError`` if one is
     missing."""
-    key = np.sort(facets, axis=1).astype(np.int64)
-    key = key[:, 0] * n + key[:, 1]
-    order = np.argsort(key)
-    q = np.sort(edges, axis=1).astype(np.int64)
-    q = q[:, 0] * n + q[:, 1]
-    pos = np.minimum(np.searchsorted(key[order], q), len(key) - 1)
-    if not (key[order][pos] == q).all():
+    lo_hi = np.sort(facets, axis=1).astype(np.int64)
+    order = np.argsort(lo_hi[:, 0] * n + lo_hi[:, 1])
+    ids = edge_ids(lo_hi[order], edges, n)
+    if (ids < 0).any():
         raise ValueError("a tagged edge is not an edge of the mesh")
-    return order[pos]
+    return order[ids]

@@ -7,6 +7,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from .labels import split_codes
+
 
 def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
             presplit: NDArray[np.bool_] | None = None,
@@ -58,7 +60,7 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
         cand = np.flatnonzero(active & ~s[:, 1])
         if not cand.size:
             break
-        up = cand[upgrade(cand, s[cand] @ np.array([1, 2, 4]))]
+        up = cand[upgrade(cand, split_codes(s[cand]))]
         # an upgrade outside the closure of the marks brings no new triangle in: the
         # triangles across its NO edge are refined already (or there are none)
         touched = np.bincount(cedges[active].ravel(), minlength=n_edges)

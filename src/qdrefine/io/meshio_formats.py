@@ -100,9 +100,13 @@ def _check_frame(path: Path, meshio_name: str) -> int | None:
         return faces
     announced = sum(int(w[2]) for w in header if len(w) == 3 and w[0] == b"element"
                     and w[2].isdigit())
-    with open(path, "rb") as f:  # the data: after the end_header line itself
-        f.seek(sum(len(line) + 1 for line in lines[:end + 1]))
-        body = f.read()
+    start = sum(len(line) + 1 for line in lines[:end + 1])  # after the end_header line
+    if size <= HEAD:
+        body = head[start:]
+    else:
+        with open(path, "rb") as f:
+            f.seek(start)
+            body = f.read()
     found = sum(1 for line in body.split(b"\n") if line.strip())
     if found > announced:
         raise ValueError(f"{path}: the file holds {found} data lines after end_header, its "
@@ -124,17 +128,23 @@ def read_with_meshio(path: Path, meshio_name: str, name: str) -> RawMesh:
     except (Exception, SystemExit) as exc:  # meshio raises many kinds (even exits)
         raise unreadable(path, name, exc) from None
     try:
-        points, blocks, tags, point_data, cell_data = _arrays(m)
+        arrays = _arrays(m)
     except (TypeError, ValueError, IndexError, KeyError, AttributeError) as exc:
         raise unreadable(path, name, exc) from None  # meshio returned malformed data
-    triangles = sum(len(data) for kind, data in blocks if kind == "triangle")
-    if faces is not None and triangles != faces:
-        raise ValueError(f"{path}: {triangles} triangles read, the header announces {faces} "
-                         "faces (a face of other than 3 vertices, or a miscount)")
+    raw = _raw(path, arrays, m.field_data)
+    if faces is not None and len(raw.triangles) != faces:
+        raise ValueError(f"{path}: {len(raw.triangles)} triangles read, the header announces "
+                         f"{faces} faces (a face of other than 3 vertices, or a miscount)")
+    return raw
+
+
+def _raw(path: Path, arrays: tuple, field_data: dict) -> RawMesh:
+    """A :class:`RawMesh` of what :func:`_arrays` converted and of meshio's ``field_data``."""
+    points, blocks, tags, point_data, cell_data = arrays
     raw = from_blocks(path, points, blocks, tags)
     if len(raw.triangles):
         split_data(raw, point_data, cell_data)
-    raw.physical_names = _names(m.field_data)
+    raw.physical_names = _names(field_data)
     return raw
 
 
@@ -237,12 +247,7 @@ def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
 
 def raw_from_meshio(m, path: Path) -> RawMesh:
     """What a ``meshio.Mesh`` holds as a :class:`RawMesh` (``path`` names it in messages)."""
-    points, blocks, tags, point_data, cell_data = _arrays(m)
-    raw = from_blocks(path, points, blocks, tags)
-    if len(raw.triangles):
-        split_data(raw, point_data, cell_data)
-    raw.physical_names = _names(m.field_data)
-    return raw
+    return _raw(path, _arrays(m), m.field_data)
 
 
 def _plain(value) -> NDArray:
