@@ -33,6 +33,13 @@ def _writable(folder: Path) -> bool:
     return True
 
 
+def _user_cache() -> Path:
+    """numba's cache folder in the user's cache directory (its second choice)."""
+    from numba.misc.appdirs import AppDirs
+
+    return Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)
+
+
 def cache_directory() -> str | None:
     """Make sure numba can cache the kernels (``cache=True``), also from a read-only install.
 
@@ -44,10 +51,7 @@ def cache_directory() -> str | None:
     """
     if numba.config.CACHE_DIR:
         return None
-    from numba.misc.appdirs import AppDirs
-
-    if _writable(Path(__file__).parent / "__pycache__") or _writable(
-            Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)):
+    if _writable(Path(__file__).parent / "__pycache__") or _writable(_user_cache()):
         return None
     uid = os.getuid() if hasattr(os, "getuid") else "user"
     folder = Path(tempfile.gettempdir()) / f"qdrefine-numba-{uid}"
@@ -71,10 +75,7 @@ def compiled_before(module: str = "kernels") -> bool:
     if numba.config.CACHE_DIR:
         places = [Path(numba.config.CACHE_DIR)]
     else:
-        from numba.misc.appdirs import AppDirs
-
-        places = [Path(__file__).parent / "__pycache__",
-                  Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)]
+        places = [Path(__file__).parent / "__pycache__", _user_cache()]
     for place in places:
         if place.is_dir() and next(place.rglob(pattern), None) is not None:
             return True
