@@ -165,7 +165,7 @@ def part_bounds(cycles):  # noqa: ARG001
 
 
 def plot_loops(loops, history, png):
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = plt.subplots(figsize=(10, 4.5))
     styles = iter([("o", "-"), ("s", "--"), ("^", "-."), ("D", ":"), ("v", "-"), ("P", "--"),
                    ("*", "-.")])
     for name, res in loops.items():
@@ -184,7 +184,7 @@ def plot_loops(loops, history, png):
     ax.set_ylim(0, 1)
     ax.set_title("7T-QD, mesh = refine(mesh, marked=...) on Gmsh meshes")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1))  # beside the data
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     plt.close(fig)
