@@ -10,7 +10,7 @@ import pytest
 
 from oracle import definition1_case, incircle, orient, seven_points
 from qdrefine import diagram as dg
-from qdrefine import partition
+from qdrefine import partition, quality
 from qdrefine.cli import main
 from qdrefine.stencil import fan
 
@@ -72,7 +72,7 @@ def test_regions_match_the_partitions():
     x, y = shaded_points(1, 5)[0]
     pts9, tris = partition(np.array([[0.0, 0.0], [1.0, 0.0], [x, y]]), "7t-qd")
     p = pts9[tris[4:]]
-    ang = dg._tri_angles(p).min()
+    ang = quality.corner_angles(p).min()
     assert ang == pytest.approx(dg.partition_measure([x], [y], "7t-qd")[0], abs=1e-9)
 
 

@@ -48,7 +48,7 @@ def test_lemmas_hold_and_paper_centre_is_wrong():
     out = lemma_checks()
     assert len(out["results"]) == 24
     assert all(r["delaunay"] for r in out["results"])
-    adp = [c for c in out["centres"] if c["triangle"].startswith("ADP")][0]
+    adp = [c for c in out["centres"] if c["lemma"] == "Lemma 2"][0]
     assert adp["x_ok"] and not adp["y_ok"]
     assert all(ok for _, ok in out["steps"])
     assert out["b_step"] == {"same_y": True, "unaffected": True}

@@ -38,3 +38,26 @@ def test_incircle_forms(o):
         a, b, c = incircle_form(SEVEN, *quad)
         expected = incircle(*(s[x] for x in quad))
         assert cross * (a * uu + b * ww + c * uw) == expected
+
+
+def test_stencil_labels_are_spelled_only_in_the_stencil_modules():
+    """Every stencil fact lives in ``stencil.py``/``schemes.py``: no other source module
+    spells a triangle or a point list of the seven-triangle stencil (three or more distinct
+    point names as one string literal, e.g. ``"MDP"``); they take them from there."""
+    import ast
+    from pathlib import Path
+
+    import qdrefine
+
+    names = set(SEVEN.names)
+    root = Path(qdrefine.__file__).parent
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        if path.name in ("stencil.py", "schemes.py"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            value = getattr(node, "value", None) if isinstance(node, ast.Constant) else None
+            if (isinstance(value, str) and len(value) >= 3 and set(value) <= names
+                    and len(set(value)) == len(value)):
+                found.append(f"{path.relative_to(root)}:{node.lineno} {value!r}")
+    assert found == []

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .arguments import as_count
+from .numbering import index_dtype
 from .schemes import Scheme, get_scheme
 
 if TYPE_CHECKING:
@@ -20,11 +21,6 @@ __all__ = ["check_memory", "memory_needed", "available_memory", "MEMORY_LIMIT_VA
 #: Environment variable capping the memory qdrefine may plan to use (e.g. ``4GiB``).
 MEMORY_LIMIT_VARIABLE = "QDREFINE_MEMORY_LIMIT"
 _UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
-
-def index_dtype(n_points: int) -> type[np.integer]:
-    """:func:`qdrefine.check.index_dtype` (which imports this module)."""
-    return np.int32 if n_points <= np.iinfo(np.int32).max else np.int64
-
 
 def validation_needed(n_points: int, n_triangles: int, n_boundary: int | None = None) -> int:
     """Peak bytes of validating a mesh (:func:`qdrefine.check.find`), an estimate from above.

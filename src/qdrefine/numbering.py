@@ -29,7 +29,13 @@ from numpy.typing import NDArray
 
 from .jit import AHEAD, prefetch, prefetch_write, threads_for, unsigned
 
-__all__ = ["EdgeBuckets", "sort_edges", "number_edges", "bucket_points", "edge_point", "edge_ids"]
+__all__ = ["EdgeBuckets", "sort_edges", "number_edges", "bucket_points", "edge_point", "edge_ids",
+           "index_dtype"]
+
+
+def index_dtype(n_points: int) -> type[np.integer]:
+    """``int32`` while vertex indices fit, ``int64`` beyond."""
+    return np.int32 if n_points <= np.iinfo(np.int32).max else np.int64
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ if TYPE_CHECKING:  # a Mesh is told by its arrays, so this module needs no impor
 
 __all__ = [
     "angles",
+    "corner_angles",
     "min_angles",
     "max_angles",
     "areas",
@@ -72,9 +73,21 @@ def angles(mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None) -> NDArra
     Computed as ``atan2(|cross|, dot)`` of the two edge vectors, accurate also for needles.
     """
     p, t = _arrays(mesh, triangles)
-    v = p[t]  # (M, 3, 2)
-    a = np.roll(v, -1, axis=1) - v
-    b = np.roll(v, 1, axis=1) - v
+    return corner_angles(p[t])
+
+
+def corner_angles(corners: ArrayLike) -> NDArray[np.float64]:
+    """Interior angles ``(..., 3)`` in degrees of triangles given by their corners.
+
+    Parameters
+    ----------
+    corners : (..., 3, 2) float
+        Corner coordinates; column ``i`` of the result is the angle at corner ``i``.
+        Orientation does not matter.
+    """
+    v = np.asarray(corners, dtype=np.float64)
+    a = np.roll(v, -1, axis=-2) - v
+    b = np.roll(v, 1, axis=-2) - v
     cross = np.abs(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
     dot = (a * b).sum(axis=-1)
     return np.degrees(np.arctan2(cross, dot))

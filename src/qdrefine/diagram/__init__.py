@@ -77,9 +77,6 @@ from .mapping import (
 from .mapping import (
     _rows_float as _rows_float,
 )
-from .mapping import (
-    _tri_angles as _tri_angles,
-)
 from .quadrature import QuadResult, gauss_kronrod, quadrature_area
 from .regions import ANGLE_REGIONS, ARC_REGIONS, region_area
 from .regions import _pred as _pred

@@ -13,8 +13,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..kernels import canonical, decide
 from ..predicates import SCRATCH, factor_forms
+from ..quality import corner_angles
 from ..schemes import SCHEMES
-from ..stencil import SEVEN, fan
+from ..stencil import FIXED_7T, SEVEN, fan
 
 #: Area of the left half of the diagram, ``pi/6 - sqrt(3)/8``.
 HALF_AREA = math.pi / 6 - math.sqrt(3) / 8
@@ -144,33 +145,24 @@ def stencil_points(x: ArrayLike, y: ArrayLike) -> NDArray[np.float64]:
     return np.stack([px, py], axis=-1)
 
 
-def _tri_angles(p: NDArray) -> NDArray:
-    """Angles (degrees) ``(..., 3)`` of triangles ``(..., 3, 2)``."""
-    a = np.roll(p, -1, axis=-2) - p
-    b = np.roll(p, 1, axis=-2) - p
-    cross = np.abs(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
-    dot = (a * b).sum(axis=-1)
-    return np.degrees(np.arctan2(cross, dot))
-
-
 def _names_index(names):
     return np.array([[SEVEN.index(c) for c in t] for t in names])
 
 
-_FIXED_IDX = _names_index(("MDP", "PDA", "CQB", "CNQ"))
+_FIXED_IDX = _names_index(FIXED_7T)
 _FAN_IDX = {a: _names_index(fan(a)) for a in FANS}
 
 
 def fan_angles(x: ArrayLike, y: ArrayLike, apex: str) -> NDArray[np.float64]:
     """Smallest angle (degrees) of each of the three triangles of a pentagon fan, ``(K, 3)``."""
     p = stencil_points(x, y)
-    return _tri_angles(p[:, _FAN_IDX[apex]]).min(axis=-1)
+    return corner_angles(p[:, _FAN_IDX[apex]]).min(axis=-1)
 
 
 def fixed_angles(x: ArrayLike, y: ArrayLike) -> NDArray[np.float64]:
     """Smallest angle of each of the four fixed corner triangles, ``(K, 4)``."""
     p = stencil_points(x, y)
-    return _tri_angles(p[:, _FIXED_IDX]).min(axis=-1)
+    return corner_angles(p[:, _FIXED_IDX]).min(axis=-1)
 
 
 MEASURES = ("min", "mean")

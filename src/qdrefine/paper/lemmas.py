@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 
-from ..stencil import SEVEN
+from ..stencil import FIXED_7T, SEVEN
 
 __all__ = ["lemma_checks", "has"]
 
@@ -55,8 +55,11 @@ def lemma_checks() -> dict:
         vals = [(sp.nsimplify(sp.simplify(q.subs({x: a, y: b}))), (a, b)) for a, b in cands]
         return max(vals, key=lambda t: float(t[0]))
 
+    # Lemma 1: the fixed corner triangles at M and N; Lemma 2: the other two
+    lemma_1 = tuple(t for t in FIXED_7T if "M" in t or "N" in t)
+    lemma_2 = tuple(t for t in FIXED_7T if t not in lemma_1)
     results = []
-    for lemma, tris in (("Lemma 1", ("MPD", "CNQ")), ("Lemma 2", ("ADP", "BCQ"))):
+    for lemma, tris in (("Lemma 1", lemma_1), ("Lemma 2", lemma_2)):
         for tri in tris:
             a, b, c = (pts[n] for n in tri)
             o = orient(a, b, c)
@@ -81,13 +84,16 @@ def lemma_checks() -> dict:
     paper_c0 = (sp.Rational(1, 6), (x**2 - x + y**2) / (6 * y))
     paper_c1 = ((2 * x**2 + 2 * y**2 + 1) / 6,
                 x * (x**2 + y**2) * (2 * x**2 + 2 * y**2 + 1) / (36 * y))
-    true_c0 = circumcentre(pts["M"], pts["P"], pts["D"])
-    true_c1 = circumcentre(pts["A"], pts["D"], pts["P"])
+    at_m = next(t for t in lemma_1 if "M" in t)  # the paper's MPD
+    at_p = next(t for t in lemma_2 if "P" in t)  # the paper's ADP
+    true_c0 = circumcentre(*(pts[n] for n in at_m))
+    true_c1 = circumcentre(*(pts[n] for n in at_p))
     centres = []
-    for label, paper, true in (("MPD (Lemma 1)", paper_c0, true_c0),
-                               ("ADP (Lemma 2)", paper_c1, true_c1)):
+    for lemma, tri, paper, true in (("Lemma 1", at_m, paper_c0, true_c0),
+                                    ("Lemma 2", at_p, paper_c1, true_c1)):
         ok = [sp.simplify(p - t) == 0 for p, t in zip(paper, true, strict=True)]
-        centres.append({"triangle": label, "paper": f"({paper[0]}, {paper[1]})",
+        centres.append({"triangle": f"{tri} ({lemma})", "lemma": lemma,
+                        "paper": f"({paper[0]}, {paper[1]})",
                         "true": f"({true[0]}, {true[1]})", "x_ok": ok[0], "y_ok": ok[1]})
     # the paper's intermediate inequalities of Lemma 1
     cc = true_c0

@@ -236,7 +236,7 @@ def lemmas(ctx) -> list[str]:
                    f"{'correct' if c['y_ok'] else 'WRONG'}.")
     for text, good in lem["steps"]:
         out.append(f"- {text}: {'correct' if good else 'WRONG'}.")
-    adp = next(c for c in lem["centres"] if c["triangle"].startswith("ADP"))
+    adp = next(c for c in lem["centres"] if c["lemma"] == "Lemma 2")
     b = lem["b_step"]
     if adp["y_ok"]:
         remark = "The paper's ADP circumcentre is correct."

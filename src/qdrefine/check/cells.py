@@ -1,0 +1,179 @@
+"""Checks of the arrays themselves: shapes, coordinates, vertex indices, orientation, cell
+tags and tagged edges (each adds to a :class:`~qdrefine.check.report.Findings`)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..numbering import edge_ids
+from ..predicates import COORDINATE_RANGE, orient_signs
+from ..quality import min_angles
+from .edges import Topology
+from .report import Findings
+
+__all__ = ["points", "triangles", "in_range", "coordinates", "orientation", "cell_tags",
+           "tagged_edges", "small_angles"]
+
+
+def points(found: Findings, points: ArrayLike) -> NDArray | None:
+    try:
+        p = np.array(points, dtype=np.float64, copy=True)
+    except (TypeError, ValueError) as exc:
+        found.add("points", f"points must be an (N, 2) array of numbers ({exc})")
+        return None
+    if p.ndim != 2 or p.shape[1] != 2:
+        found.add("points", f"points must have shape (N, 2), got {p.shape}")
+        return None
+    return p
+
+
+def triangles(found: Findings, triangles: ArrayLike) -> NDArray | None:
+    try:
+        t = np.asarray(triangles)
+    except (TypeError, ValueError) as exc:
+        found.add("triangles", f"triangles must be an (M, 3) array of integers ({exc})")
+        return None
+    if t.size and not np.issubdtype(t.dtype, np.integer):
+        found.add("triangles", f"triangles must hold integers, got dtype {t.dtype}")
+        return None
+    if t.size == 0 and t.ndim <= 2 and (t.ndim < 2 or t.shape[1] in (0, 3)):
+        found.add("no-triangles", "the mesh has no triangles", 0)
+        return None
+    if t.ndim != 2 or t.shape[1] != 3:
+        found.add("triangles", f"triangles must have shape (M, 3), got {t.shape}")
+        return None
+    return t
+
+
+def in_range(found: Findings, t: NDArray, n: int) -> bool:
+    if n and t.min() >= 0 and t.max() < n:
+        return True
+    bad = ((t < 0) | (t >= n)).any(axis=1)
+    if not bad.any():
+        return True
+    i = int(np.flatnonzero(bad)[0])
+    b = found.base
+    found.add("index-range", f"triangle {i + b} {tuple(found.ids(t[i]))} has a vertex index "
+              f"outside {b}..{n - 1 + b}", np.count_nonzero(bad), triangle=i + b,
+              vertices=found.ids(t[i]))
+    return False
+
+
+def coordinates(found: Findings, p: NDArray) -> bool:
+    lo, hi = COORDINATE_RANGE
+    a = np.abs(p)
+    if len(p) == 0 or (a.max() <= hi and np.where(a == 0, hi, a).min() >= lo):
+        return True  # also False for NaN: max() of an array with NaN is NaN
+    ok = True
+    bad = ~np.isfinite(p).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        found.add("non-finite", f"point {i + found.base} has a non-finite coordinate "
+                  f"{tuple(p[i].tolist())}", np.count_nonzero(bad), point=i + found.base)
+        ok = False
+    a = np.abs(np.where(np.isfinite(p), p, 0.0))
+    bad = ((a > hi) | ((a < lo) & (a != 0))).any(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        found.add("coordinate-range",
+                  f"point {i + found.base} has a coordinate {tuple(p[i].tolist())} outside "
+                  f"the supported range: each coordinate must be 0 or between {lo:g} and "
+                  f"{hi:g} in magnitude (exact predicates; rescale the mesh or round tiny "
+                  "values to 0)", np.count_nonzero(bad), point=i + found.base)
+        ok = False
+    return ok
+
+
+def orientation(found: Findings, p: NDArray, t: NDArray, flip: bool) -> tuple[bool, bool]:
+    """Zero-area and clockwise triangles; flips the clockwise rows of ``t`` when ``flip``.
+    True when every triangle is (now) counter-clockwise, and True when none has zero area."""
+    signs = orient_signs(p, t)
+    zero = signs == 0
+    if zero.any():
+        i = int(np.flatnonzero(zero)[0])
+        found.add("zero-area", f"triangle {i + found.base} {tuple(found.ids(t[i]))} has zero "
+                  "area", np.count_nonzero(zero), triangle=i + found.base,
+                  vertices=found.ids(t[i]))
+    cw = signs < 0
+    if cw.any():
+        i = int(np.flatnonzero(cw)[0])
+        k = int(np.count_nonzero(cw))
+        where = {"triangle": i + found.base, "vertices": found.ids(t[i])}
+        if flip:
+            found.add("clockwise", f"{k} of {len(t)} triangles were clockwise and have been "
+                      "flipped", k, "warning", **where)
+            t[cw] = t[cw][:, ::-1]
+        else:
+            found.add("clockwise", f"triangle {i + found.base} {tuple(found.ids(t[i]))} is "
+                      "clockwise; triangles must be counter-clockwise with positive area", k,
+                      **where)
+    return not zero.any() and (flip or not cw.any()), not zero.any()
+
+
+def _integers(found: Findings, kind: str, value: ArrayLike, name: str) -> NDArray | None:
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        found.add(kind, f"{name} must hold integers ({exc})")
+        return None
+    if a.size and not np.issubdtype(a.dtype, np.integer):
+        found.add(kind, f"{name} must hold integers, got dtype {a.dtype}")
+        return None
+    return a.astype(np.int64)
+
+
+def cell_tags(found: Findings, cell_tags: ArrayLike | None, m: int) -> NDArray | None:
+    if cell_tags is None:
+        return None
+    ct = _integers(found, "cell-tags", cell_tags, "cell_tags")
+    if ct is not None and ct.shape != (m,):
+        found.add("cell-tags", f"cell_tags must have shape ({m},), got {ct.shape}")
+        return None
+    return ct
+
+
+def tagged_edges(found: Findings, edges, edge_tags, topo: Topology, n: int,
+                  dtype) -> tuple[NDArray | None, NDArray | None]:
+    if edges is None and edge_tags is None:
+        return None, None
+    if edges is None or edge_tags is None:
+        found.add("edge-tags", "edges and edge_tags must be given together")
+        return None, None
+    e = _integers(found, "edge-tags", edges, "edges")
+    et = _integers(found, "edge-tags", edge_tags, "edge_tags")
+    if e is None or et is None:
+        return None, None
+    if e.size == 0:
+        e = e.reshape(0, 2)
+    if e.ndim != 2 or e.shape[1] != 2:
+        found.add("edge-tags", f"edges must have shape (K, 2), got {e.shape}")
+        return None, None
+    if et.shape != (e.shape[0],):
+        found.add("edge-tags", f"edge_tags must have shape ({e.shape[0]},), got {et.shape}")
+        return None, None
+    bad = ((e < 0) | (e >= n)).any(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        found.add("edge-tags", f"edge {i} {tuple(found.ids(e[i]))} has a vertex index outside "
+                  f"{found.base}..{n - 1 + found.base}", np.count_nonzero(bad), edge_row=i)
+        return None, None
+
+    missing = edge_ids(topo.edges, e, n) < 0
+    if missing.any():
+        i = int(np.flatnonzero(missing)[0])
+        found.add("edge-not-in-mesh", f"edge {i} {tuple(found.ids(e[i]))} is not an edge of "
+                  "any triangle", np.count_nonzero(missing), edge_row=i, edge=found.ids(e[i]))
+        return None, None
+    return np.ascontiguousarray(e, dtype=dtype), et
+
+
+def small_angles(found: Findings, p: NDArray, t: NDArray, min_angle: float) -> None:
+    angles = min_angles(p, t)
+    small = angles < min_angle
+    if small.any():
+        i = int(np.argmin(angles))
+        found.add("small-angle", f"{int(small.sum())} triangles have an angle below "
+                  f"{min_angle:g} degrees (smallest: {angles[i]:.3g} degrees in triangle "
+                  f"{i + found.base})", int(small.sum()), triangle=i + found.base,
+                  angle=float(angles[i]))
