@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from .labels import split_codes
@@ -49,7 +50,8 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
     """
     split = np.zeros(n_edges, dtype=bool) if presplit is None else presplit.copy()
     split[cedges[marked].ravel()] = True
-    rounds = _propagate(split, cedges, np.flatnonzero(split[cedges].any(axis=1)))
+    around = edge_triangles(cedges, n_edges)
+    rounds = _propagate(split, cedges, np.flatnonzero(split[cedges].any(axis=1)), around)
     if upgrade is None:
         return split, rounds
     reached = split[cedges].any(axis=1)  # the closure of the marks
@@ -71,7 +73,7 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
             break
         split[no] = True
         rounds += 1 + _propagate(split, cedges, np.flatnonzero(split[cedges[:, 1:]].any(axis=1)
-                                                               & ~split[cedges[:, 0]]))
+                                                               & ~split[cedges[:, 0]]), around)
         layers -= 1
         if layers > 0:
             reached = split[cedges].any(axis=1)
@@ -79,20 +81,60 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
 
 
 def _propagate(split: NDArray[np.bool_], cedges: NDArray[np.int64],
-               active: NDArray[np.int64]) -> int:
+               active: NDArray[np.int64], around: tuple[NDArray, NDArray]) -> int:
     """Close ``split`` in place under the longest-edge rule (a triangle with a split edge
     has its longest edge ``MN`` split), starting from the triangles ``active``; the number
-    of rounds."""
-    longest = cedges[:, 0]
-    rounds = 0
-    while active.size:
+    of rounds (breadth-first levels: round ``r`` splits the edges of triangles reached in
+    round ``r - 1``, as if all were done at once)."""
+    start, tris = around
+    return _worklist(split, cedges, start, tris, np.ascontiguousarray(active, dtype=np.int64))
+
+
+def edge_triangles(cedges: NDArray[np.int64], n_edges: int) -> tuple[NDArray[np.int64],
+                                                                       NDArray[np.int64]]:
+    """The triangles around every edge: ``tris[start[e]:start[e + 1]]`` (CSR, ``(E + 1,)``
+    and ``(3M,)`` int64), in triangle order."""
+    return _edge_triangles(cedges, n_edges)
+
+
+@njit(cache=True)
+def _edge_triangles(cedges, n_edges):
+    start = np.zeros(n_edges + 1, dtype=np.int64)
+    for t in range(cedges.shape[0]):
+        for i in range(3):
+            start[cedges[t, i] + 1] += 1
+    for e in range(n_edges):
+        start[e + 1] += start[e]
+    fill = start[:-1].copy()
+    tris = np.empty(start[n_edges], dtype=np.int64)
+    for t in range(cedges.shape[0]):
+        for i in range(3):
+            e = cedges[t, i]
+            tris[fill[e]] = t
+            fill[e] += 1
+    return start, tris
+
+
+@njit(cache=True)
+def _worklist(split, cedges, start, tris, active):
+    # every edge is split once and queues its triangles once: the queue needs at most
+    # len(active) + len(tris) places
+    queue = np.empty(active.shape[0] + tris.shape[0], dtype=np.int64)
+    queue[:active.shape[0]] = active
+    head, tail, rounds = 0, active.shape[0], 0
+    while head < tail:
         rounds += 1
-        new = longest[active]
-        new = np.unique(new[~split[new]])
-        if new.size == 0:
+        end = tail
+        grew = False
+        while head < end:
+            e = cedges[queue[head], 0]
+            head += 1
+            if not split[e]:
+                split[e] = True
+                grew = True
+                for k in range(start[e], start[e + 1]):
+                    queue[tail] = tris[k]
+                    tail += 1
+        if not grew:
             break
-        split[new] = True
-        touched = np.zeros(split.shape[0], dtype=bool)
-        touched[new] = True
-        active = np.flatnonzero(touched[cedges].any(axis=1))
     return rounds
