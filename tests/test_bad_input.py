@@ -3,8 +3,10 @@
 Each case is a small file (or none) with the message it must produce. The API part calls
 ``qdrefine.read`` (and ``Mesh`` on the same arrays where the problem is in the content); the
 command-line part runs ``qdrefine refine IN OUT`` and ``qdrefine check IN`` as subprocesses
-and checks the exit code, the one-line message, that OUT does not exist and that the input
-files are unchanged byte for byte (and no other file appeared).
+(the later cases call ``qdrefine.cli.main`` in-process, except those about signals, memory
+limits of a fresh process and files that could hang a reader) and checks the exit code,
+the one-line message, that OUT does not exist and that the input files are unchanged byte
+for byte (and no other file appeared).
 """
 
 from __future__ import annotations
@@ -21,10 +23,9 @@ import pytest
 
 import qdrefine
 from cli_runner import cli, finish, start
+from meshes import DATA
 from qdrefine import Mesh, check, examples
 from qdrefine.memory import MEMORY_LIMIT_VARIABLE, memory_needed
-
-DATA = Path(__file__).parent / "data"
 
 
 def msh22(nodes, triangles=(), lines=(), quads=()) -> str:
@@ -243,7 +244,7 @@ MIXED = [(0, 1, 2), (0, 3, 2)]
 
 @pytest.mark.parametrize(("nodes", "tris", "count"), [(SQ[:3], CW, "1 of 1"),
                                                        (SQ, MIXED, "1 of 2")])
-def test_clockwise_and_mixed_orientation(tmp_path, nodes, tris, count):
+def test_clockwise_and_mixed_orientation(tmp_path, nodes, tris, count, run):
     path = tmp_path / "in.msh"
     path.write_text(msh22(nodes, tris))
     before = path.read_bytes()
@@ -252,11 +253,11 @@ def test_clockwise_and_mixed_orientation(tmp_path, nodes, tris, count):
     with pytest.warns(UserWarning, match=f"in.msh: {count} triangles were clockwise"):
         mesh = qdrefine.read(path)
     assert (qdrefine.quality.areas(mesh) > 0).all()
-    refined = cli("refine", path, tmp_path / "out.vtu", "-q")
+    refined = run("refine", path, tmp_path / "out.vtu", "-q")
     assert refined.returncode == 0 and refined.stdout == ""
     assert refined.stderr == f"qdrefine: warning: {path}: {count} triangles were clockwise " \
                              "and have been flipped\n"
-    checked = cli("check", path, "--json")
+    checked = run("check", path, "--json")
     assert checked.returncode == 0, checked
     report = json.loads(checked.stdout)
     assert report["usable"] and [p["kind"] for p in report["problems"]] == ["clockwise"]
@@ -333,18 +334,18 @@ def test_too_thin_for_float64_children_command_line(tmp_path):
 
 # geometry decided by the refinement's own predicates: passes check => refines -------------
 
-def test_near_hanging_node_outside_is_a_warning_and_refines(tmp_path):
+def test_near_hanging_node_outside_is_a_warning_and_refines(tmp_path, run):
     """Off the edge by 4e-18 on the far side: a crack, not an overlap; check passes with a
     warning and the mesh refines (the same exact predicates decide both)."""
     path = tmp_path / "crack.msh"
     path.write_text(msh22(HANGING[:3] + [(1.0, -4e-18)] + HANGING[4:], HANGING_TRIS))
     before = _snapshot(tmp_path)
-    checked = cli("check", path, "--json")
+    checked = run("check", path, "--json")
     assert checked.returncode == 0, checked
     report = json.loads(checked.stdout)
     assert report["usable"] and "near-hanging-node" in {p["kind"] for p in report["problems"]}
     out = tmp_path / "out.vtu"
-    refined = cli("refine", path, out, "-q")
+    refined = run("refine", path, out, "-q")
     assert refined.returncode == 0 and refined.stderr == "", refined
     assert qdrefine.read(out).n_triangles == 7 * len(HANGING_TRIS)
     out.unlink()
@@ -352,7 +353,7 @@ def test_near_hanging_node_outside_is_a_warning_and_refines(tmp_path):
 
 
 @pytest.mark.parametrize("levels", [2, 3])
-def test_refusal_at_level_k_names_the_input_triangle(tmp_path, levels):
+def test_refusal_at_level_k_names_the_input_triangle(tmp_path, levels, run):
     """A needle refined once fine but refused later: the message names the triangle of IN
     (0-based row), not one of the intermediate mesh."""
     h = {2: 1e-8, 3: 3e-8}[levels]
@@ -364,14 +365,14 @@ def test_refusal_at_level_k_names_the_input_triangle(tmp_path, levels):
                                          rf"{levels} levels: its descendant \d+"):
         qdrefine.refine(qdrefine.read(path), levels=levels)
     before = _snapshot(tmp_path)
-    result = cli("refine", path, tmp_path / "out.msh", "--levels", levels)
+    result = run("refine", path, tmp_path / "out.msh", "--levels", levels)
     assert result.returncode == 1 and result.stderr.count("\n") == 1
     assert result.stderr.startswith(f"qdrefine: error: {path}: triangle 1 (0, 3, 1) cannot be "
                                     f"refined {levels} levels: its descendant ")
     assert _snapshot(tmp_path) == before
 
 
-def test_json_outputs_are_valid_json(tmp_path):
+def test_json_outputs_are_valid_json(tmp_path, run):
     """NaN and infinities become null; NumPy numbers become plain numbers."""
     from qdrefine.cli._common import dumps
 
@@ -385,7 +386,7 @@ def test_json_outputs_are_valid_json(tmp_path):
         raise AssertionError(f"invalid JSON constant {word}")
 
     for command in ("quality", "check", "info"):
-        result = cli(command, path, "--json")
+        result = run(command, path, "--json")
         assert result.returncode == 0, result
         json.loads(result.stdout, parse_constant=strict)
 
@@ -452,7 +453,7 @@ def test_fifo_is_refused_not_waited_on(tmp_path, ext):
 @pytest.mark.parametrize("cut", [0.2, 0.5, 0.95])
 @pytest.mark.parametrize("kwargs", [{}, {"binary": True}, {"format_version": "2.2"},
                                     {"format_version": "2.2", "binary": True}])
-def test_short_msh_files_fail_with_one_line(tmp_path, cut, kwargs):
+def test_short_msh_files_fail_with_one_line(tmp_path, cut, kwargs, run):
     """Files cut anywhere (counts announced beyond the end): one line naming the file and
     the line or byte, checked against the file size before anything is allocated."""
     qdrefine.write(tmp_path / "good.msh", examples.plate_with_hole(), **kwargs)
@@ -462,7 +463,7 @@ def test_short_msh_files_fail_with_one_line(tmp_path, cut, kwargs):
     with pytest.raises(ValueError, match=r"cut\.msh: not a readable Gmsh MSH file \((line|byte) "
                                          r"\d+: "):
         qdrefine.read(tmp_path / "cut.msh")
-    result = cli("refine", tmp_path / "cut.msh", tmp_path / "out.msh")
+    result = run("refine", tmp_path / "cut.msh", tmp_path / "out.msh")
     assert result.returncode == 1 and result.stderr.count("\n") == 1
     assert result.stderr.startswith(f"qdrefine: error: {tmp_path / 'cut.msh'}: not a readable")
     assert _snapshot(tmp_path) == before

@@ -1,4 +1,5 @@
-"""The command line: every subcommand through the real entry point, and its error paths."""
+"""The command line: every subcommand (in-process through ``qdrefine.cli.main``; the entry
+point itself by ``python -m qdrefine``), and its error paths."""
 
 import json
 from pathlib import Path
@@ -8,12 +9,9 @@ import pytest
 
 import qdrefine
 from cli_runner import cli
+from meshes import DATA
 from qdrefine import examples, quality
 from qdrefine.cli import main
-
-DATA = Path(__file__).parent / "data"
-
-
 
 
 def test_python_dash_m_runs():
@@ -45,12 +43,12 @@ def test_demo_subprocess_default_directory(tmp_path):
     assert (tmp_path / "qdrefine-demo" / "report.txt").exists()
 
 
-def test_refine_gmsh_keeps_every_tag(tmp_path):
+def test_refine_gmsh_keeps_every_tag(tmp_path, run):
     """Acceptance: two physical surfaces and tagged lines, --levels 2."""
     src = DATA / "two_regions_22.msh"
     before = src.read_bytes()
     out = tmp_path / "fine.msh"
-    result = cli("refine", src, out, "--levels", "2")
+    result = run("refine", src, out, "--levels", "2")
     assert result.returncode == 0, result.stderr
     assert src.read_bytes() == before
     coarse, fine = qdrefine.read(src), qdrefine.read(out)
@@ -80,8 +78,8 @@ def test_refine_gmsh_keeps_every_tag(tmp_path):
     assert used.all() and len(fine.edges) == 9 * len(coarse.edges)
 
 
-def test_info_json_and_text(tmp_path):
-    result = cli("info", DATA / "two_regions_41.msh", "--json")
+def test_info_json_and_text(tmp_path, run):
+    result = run("info", DATA / "two_regions_41.msh", "--json")
     assert result.returncode == 0, result.stderr
     d = json.loads(result.stdout)
     assert d["triangles"] == 52 and d["conforming"] and d["counter_clockwise"]
@@ -89,13 +87,13 @@ def test_info_json_and_text(tmp_path):
     assert d["cell_tags"]["1"]["area"] == pytest.approx(1.0)
     assert d["edge_tags"]["10"]["length"] == pytest.approx(2.0)
     assert d["bounding_box"] == {"xmin": 0.0, "ymin": 0.0, "xmax": 2.0, "ymax": 1.0}
-    text = cli("info", DATA / "two_regions_41.msh").stdout
+    text = run("info", DATA / "two_regions_41.msh").stdout
     assert "conforming            yes" in text and "edge tags             10:" in text
 
 
-def test_quality_json_and_histogram(tmp_path):
+def test_quality_json_and_histogram(tmp_path, run):
     png = tmp_path / "h.png"
-    result = cli("quality", DATA / "two_regions_22.msh", "--json", "--histogram", png)
+    result = run("quality", DATA / "two_regions_22.msh", "--json", "--histogram", png)
     assert result.returncode == 0, result.stderr
     d = json.loads(result.stdout)
     mesh = qdrefine.read(DATA / "two_regions_22.msh")
@@ -104,17 +102,17 @@ def test_quality_json_and_histogram(tmp_path):
     assert png.read_bytes()[:4] == b"\x89PNG"
 
 
-def test_plot_writes_a_png(tmp_path):
+def test_plot_writes_a_png(tmp_path, run):
     for color in ("min-angle", "tag", "none"):
         png = tmp_path / f"{color}.png"
-        result = cli("plot", DATA / "two_regions_22.msh", png, "--color", color)
+        result = run("plot", DATA / "two_regions_22.msh", png, "--color", color)
         assert result.returncode == 0, result.stderr
         assert png.read_bytes()[:4] == b"\x89PNG"
 
 
-def test_compare_json_and_plot(tmp_path):
+def test_compare_json_and_plot(tmp_path, run):
     png = tmp_path / "c.png"
-    result = cli("compare", DATA / "two_regions_22.msh", "--levels", "2", "--schemes",
+    result = run("compare", DATA / "two_regions_22.msh", "--levels", "2", "--schemes",
                  "7t-qd", "4t-red", "--json", "--plot", png)
     assert result.returncode == 0, result.stderr
     rows = json.loads(result.stdout)["rows"]

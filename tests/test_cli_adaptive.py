@@ -1,20 +1,18 @@
-"""``qdrefine refine`` with marks (--mark-tag, --mark-box, --mark-file, --cycles), through
-the real entry point, compared with the Python API."""
+"""``qdrefine refine`` with marks (--mark-tag, --mark-box, --mark-file, --cycles), in-process
+through ``qdrefine.cli.main``, compared with the Python API."""
 
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import qdrefine
-from cli_runner import cli
+from meshes import DATA
 from qdrefine.adaptive import refine_marked
 from qdrefine.marking import mark_box, mark_tag
 from qdrefine.quality import areas
 from qdrefine.topology import conformity
 
-DATA = Path(__file__).parent / "data"
 SRC = DATA / "two_regions_22.msh"
 
 
@@ -49,9 +47,9 @@ def same_mesh(a, b):
     np.testing.assert_array_equal(a.edge_tags, b.edge_tags)
 
 
-def test_mark_tag_refines_that_region_and_keeps_every_tag(tmp_path):
+def test_mark_tag_refines_that_region_and_keeps_every_tag(tmp_path, run):
     out = tmp_path / "fine.msh"
-    result = cli("refine", SRC, out, "--mark-tag", "2", "--cycles", "2")
+    result = run("refine", SRC, out, "--mark-tag", "2", "--cycles", "2")
     assert result.returncode == 0, result.stderr
     coarse, fine = qdrefine.read(SRC), qdrefine.read(out)
     expected, marked = api(coarse, lambda m, _: mark_tag(m, 2), cycles=2)
@@ -73,10 +71,10 @@ def _roundtrip(tmp_path, mesh):
     return path
 
 
-def test_mark_box_is_evaluated_on_each_cycle(tmp_path):
+def test_mark_box_is_evaluated_on_each_cycle(tmp_path, run):
     out = tmp_path / "fine.vtu"
     box = (0.0, 0.0, 0.1, 0.1)
-    result = cli("refine", SRC, out, "--mark-box", "0,0,0.1,0.1", "--cycles", "3", "--quiet")
+    result = run("refine", SRC, out, "--mark-box", "0,0,0.1,0.1", "--cycles", "3", "--quiet")
     assert result.returncode == 0, result.stderr
     assert result.stdout == ""
     coarse, fine = qdrefine.read(SRC), qdrefine.read(out)
@@ -89,7 +87,7 @@ def test_mark_box_is_evaluated_on_each_cycle(tmp_path):
     assert conformity(fine).ok
 
 
-def test_mark_file_text_and_npy_agree(tmp_path):
+def test_mark_file_text_and_npy_agree(tmp_path, run):
     coarse = qdrefine.read(SRC)
     ids = [3, 17, 40, 41]
     (tmp_path / "ids.txt").write_text("# triangles to refine\n3 17\n\n40\t41  # last two\n")
@@ -100,7 +98,7 @@ def test_mark_file_text_and_npy_agree(tmp_path):
     outs = []
     for name in ("ids.txt", "ids.npy", "mask.npy"):
         out = tmp_path / f"{name}.msh"
-        result = cli("refine", SRC, out, "--mark-file", tmp_path / name)
+        result = run("refine", SRC, out, "--mark-file", tmp_path / name)
         assert result.returncode == 0, result.stderr
         assert summary(result.stdout)[1:] == (4, qdrefine.read(out).n_triangles
                                               - coarse.n_triangles, 1)
@@ -111,11 +109,11 @@ def test_mark_file_text_and_npy_agree(tmp_path):
     same_mesh(outs[0], qdrefine.read(_roundtrip(tmp_path, expected)))
 
 
-def test_mark_file_cycles_refine_inside_the_listed_triangles_again(tmp_path):
+def test_mark_file_cycles_refine_inside_the_listed_triangles_again(tmp_path, run):
     coarse = qdrefine.read(SRC)
     (tmp_path / "ids.txt").write_text("5\n")
     out = tmp_path / "fine.msh"
-    result = cli("refine", SRC, out, "--mark-file", tmp_path / "ids.txt", "--cycles", "2")
+    result = run("refine", SRC, out, "--mark-file", tmp_path / "ids.txt", "--cycles", "2")
     assert result.returncode == 0, result.stderr
     fine = qdrefine.read(out)
     mask = np.zeros(coarse.n_triangles, bool)
@@ -126,9 +124,9 @@ def test_mark_file_cycles_refine_inside_the_listed_triangles_again(tmp_path):
     assert summary(result.stdout)[1] == marked
 
 
-def test_uniform_refinement_is_unchanged(tmp_path):
+def test_uniform_refinement_is_unchanged(tmp_path, run):
     out = tmp_path / "u.msh"
-    result = cli("refine", SRC, out, "--levels", "1")
+    result = run("refine", SRC, out, "--levels", "1")
     assert result.returncode == 0, result.stderr
     assert "triangles refined by 7t-qd, 1 level," in result.stdout
     assert qdrefine.read(out).n_triangles == 7 * qdrefine.read(SRC).n_triangles
@@ -151,13 +149,13 @@ def test_uniform_refinement_is_unchanged(tmp_path):
     (["--mark-tag", "1", "--levels", "2"], 1, "with a mark use --cycles"),
     (["--mark-tag", "1", "--cycles", "-1"], 2, "expected a number >= 0"),
 ])
-def test_bad_marks_give_one_line_and_no_output(tmp_path, extra, code, message):
+def test_bad_marks_give_one_line_and_no_output(tmp_path, extra, code, message, run):
     (tmp_path / "range.txt").write_text("1 2\n9999\n")
     (tmp_path / "word.txt").write_text("1 x7\n")
     np.save(tmp_path / "short.npy", np.ones(3, bool))
     np.save(tmp_path / "neg.npy", np.array([0, -2]))
     out = tmp_path / "out.msh"
-    result = cli("refine", SRC, out, *[a.format(tmp=tmp_path) for a in extra])
+    result = run("refine", SRC, out, *[a.format(tmp=tmp_path) for a in extra])
     assert result.returncode == code, result.stderr
     assert result.stderr.startswith("qdrefine: error: "), result.stderr
     assert message in result.stderr and result.stderr.count("\n") == 1, result.stderr

@@ -23,10 +23,10 @@ def _same(a: qdrefine.Mesh, b: qdrefine.Mesh) -> None:
     np.testing.assert_array_equal(rows(a), rows(b))
 
 
-def test_convert_round_trip_through_a_store(tmp_path):
+def test_convert_round_trip_through_a_store(tmp_path, run):
     mesh = examples.plate_with_hole()
     qdrefine.write(tmp_path / "in.msh", mesh)
-    result = cli("convert", tmp_path / "in.msh", tmp_path / "in.zarr", "--chunk-size", "50")
+    result = run("convert", tmp_path / "in.msh", tmp_path / "in.zarr", "--chunk-size", "50")
     assert result.returncode == 0 and result.stdout.endswith("written from "
                                                              f"{tmp_path / 'in.msh'}\n")
     assert store.open(tmp_path / "in.zarr").triangles.chunks[0][0] == 50
@@ -104,17 +104,17 @@ def test_refine_and_convert_between_memory_urls(tmp_path, capsys):
     fs.rm(root, recursive=True)
 
 
-def test_clean_removes_what_a_dead_run_left(tmp_path):
+def test_clean_removes_what_a_dead_run_left(tmp_path, run):
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True).stdout.strip()
     import socket
 
     left = tmp_path / f".out.zarr~{socket.gethostname()}~{dead}~00ff00ff.tmp"
     left.mkdir()
-    result = cli("clean", tmp_path / "out.zarr")
+    result = run("clean", tmp_path / "out.zarr")
     assert result.returncode == 0 and result.stdout == f"removed {left}\n"
     assert not left.exists()
-    result = cli("clean", tmp_path / "out.zarr")
+    result = run("clean", tmp_path / "out.zarr")
     assert result.stdout == f"{tmp_path / 'out.zarr'}: no temporaries to remove\n"
 
 

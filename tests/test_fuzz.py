@@ -25,7 +25,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import qdrefine
-from meshes import jittered_grid
+from meshes import DATA, jittered_grid
 from oracle import exact, orient
 from qdrefine import Mesh, check, refine
 from qdrefine.cli import main
@@ -33,7 +33,6 @@ from qdrefine.io import check_file
 from qdrefine.kernels import rounding_suspects
 from qdrefine.topology import conformity
 
-DATA = Path(__file__).parent / "data"
 _SET = os.environ.get("QDREFINE_FUZZ_EXAMPLES")
 FUZZ = settings(max_examples=int(_SET) if _SET else 30, derandomize=not _SET, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

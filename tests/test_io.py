@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 
 import qdrefine
-from meshes import jittered_grid
+from meshes import DATA, jittered_grid
 from qdrefine import Mesh, examples, io, quality
 
-DATA = Path(__file__).parent / "data"
 TAGGED = [ext for ext, f in io.FORMATS.items() if f.tags]
 UNTAGGED = [ext for ext, f in io.FORMATS.items() if not f.tags]
 
