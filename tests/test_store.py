@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 import qdrefine
 from meshes import jittered_grid
 from qdrefine import Mesh, examples, io, store
+from qdrefine.store import export
 
 FIELDS = ("points", "triangles", "cell_tags", "edges", "edge_tags")
 
@@ -108,15 +109,15 @@ def test_streaming_export_reads_chunks_and_equals_write(tmp_path, monkeypatch, n
     mesh = jittered_grid(6, seed=4)
     s = store.create(tmp_path / "m.zarr", mesh, chunk_size=5)
     reads = []
-    original = store._rows
+    original = export.rows
 
     def counting(s_, array, step=None):
         for start, rows in original(s_, array, step):
             reads.append(len(rows))
             yield start, rows
 
-    monkeypatch.setattr(store, "to_mesh", lambda *a: pytest.fail("loaded the whole mesh"))
-    monkeypatch.setattr(store, "_rows", counting)
+    monkeypatch.setattr(export, "to_mesh", lambda *a: pytest.fail("loaded the whole mesh"))
+    monkeypatch.setattr(export, "rows", counting)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         store.to_file(s, tmp_path / name, binary=binary)

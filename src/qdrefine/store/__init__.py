@@ -1,0 +1,63 @@
+"""Chunked meshes: a Zarr (v3) group of row-chunked arrays at any URL Zarr accepts, opened
+lazily with Dask.
+
+A store is a Zarr group (a local directory ``name.zarr``, or ``memory://``, ``s3://``,
+``gs://`` ... through fsspec) holding the arrays of a :class:`~qdrefine.Mesh`::
+
+    points     (N, 2) float64          dims (node, xy)       fill NaN
+    triangles  (M, 3) int32 or int64   dims (face, corner)   fill -1, counter-clockwise
+    cell_tags  (M,)   int64            dims (face,)          optional
+    edges      (K, 2) int32 or int64   dims (edge, end)      fill -1, optional, with edge_tags
+    edge_tags  (K,)   int64            dims (edge,)          optional, with edges
+    mesh       ()     int32            UGRID mesh topology (attributes only)
+
+chunked by ``C`` rows (:data:`DEFAULT_CHUNK_SIZE` unless chosen), Blosc LZ4 with byte
+shuffle, with Zarr ``dimension_names`` and consolidated metadata, so that
+``xarray.open_zarr`` opens a store. The group attribute ``qdrefine`` holds ``{"format":
+"mesh", "version": 2, "complete": true, "chunk_size": C, "qdrefine_version": ...,
+"metadata": {...}}``; ``complete`` is written last, after every chunk, and :func:`open`
+refuses a store without it. Unwritten chunks read as the fill values, which no valid mesh
+has (a NaN coordinate, a vertex index -1).
+
+:func:`create` writes a mesh, :func:`open` returns a :class:`MeshStore` of Dask arrays
+without reading any data, :func:`to_mesh` loads (and validates) a store as a ``Mesh``.
+:func:`from_file` and :func:`to_file` convert from and to every mesh file format of
+:func:`qdrefine.read` / :func:`qdrefine.write`. Streaming (memory bounded by one chunk):
+
+* writing a store to Gmsh ``.msh`` (MSH 2.2, text or binary) and to Triangle's
+  ``.node/.ele/.poly`` goes chunk by chunk;
+* every other conversion holds the whole mesh in memory (meshio reads and writes whole
+  meshes; qdrefine validates a mesh file as a whole when reading it).
+
+Stores are written through a temporary store next to the target, named
+``.NAME~HOST~PID~TOKEN.tmp``, which replaces the target when complete (an existing *store*
+is replaced; any other existing file or directory is refused). On a local filesystem the
+replacement is a rename; on object stores, which cannot rename, the new store is moved
+object by object with its root ``zarr.json`` last, after the old target's was removed: the
+target is then complete or absent, never half-written. A run killed before the end leaves
+its temporary store, which the next write to the same target removes when its process is
+gone (same host), as does :func:`clean`. Dask and Zarr are imported only when a function
+here is called.
+"""
+
+from __future__ import annotations
+
+from .export import STREAMING_EXPORT, create, from_file, to_file
+from .layout import (
+    ARRAYS,
+    DEFAULT_CHUNK_SIZE,
+    DIMENSIONS,
+    MeshStore,
+    finish,
+    is_store,
+    new_group,
+    open,
+    to_mesh,
+)
+from .lifecycle import clean, remove, writing
+from .locations import PathLike, filesystem, is_local, location
+
+__all__ = ["MeshStore", "create", "open", "to_mesh", "from_file", "to_file", "is_store",
+           "clean", "location", "filesystem", "new_group", "finish", "remove", "writing",
+           "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT", "ARRAYS", "DIMENSIONS", "PathLike",
+           "is_local"]

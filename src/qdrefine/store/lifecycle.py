@@ -1,0 +1,152 @@
+"""Writing a store safely: through a temporary store next to the target that replaces it
+when complete (a rename locally; object by object, root metadata last, on object stores),
+and removing what killed runs left behind."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+from collections.abc import Iterator
+from pathlib import Path
+
+from ..io import permission_bits
+from .layout import finish, is_store
+from .locations import PathLike, filesystem, is_local, join, location, split
+
+__all__ = ["writing", "clean", "remove", "TMP", "OLD"]
+
+#: Suffixes of a run's temporary store and of the replaced target on its way out.
+TMP, OLD = ".tmp", ".old"
+
+
+@contextlib.contextmanager
+def writing(path: PathLike) -> Iterator[str]:
+    """Yield the URL of a fresh temporary store next to ``path``; on success it is marked
+    complete and replaces ``path``.
+
+    An existing store at ``path`` is replaced; an existing non-store is refused (before any
+    work). Stale temporaries of earlier runs for the same target are removed first
+    (:func:`clean`). On failure the temporary store is removed and ``path`` is left as it
+    was.
+    """
+    url = location(path)
+    check_target(url)
+    clean(url)
+    tmp = temporary(url, TMP)
+    fs, root = filesystem(tmp)
+    try:
+        if is_local(url):
+            os.mkdir(root, permission_bits(Path(url), 0o777))
+            os.chmod(root, permission_bits(Path(url), 0o777))
+        yield tmp
+        finish(tmp)
+        replace(tmp, url)
+    except BaseException:
+        remove(tmp)
+        raise
+
+
+def temporary(url: str, suffix: str) -> str:
+    """``.NAME~HOST~PID~TOKEN<suffix>`` next to ``url``: who made it, for :func:`clean`."""
+    parent, name = split(url)
+    host = socket.gethostname().replace("~", "-").replace("/", "-")
+    return join(parent, f".{name}~{host}~{os.getpid()}~{os.urandom(4).hex()}{suffix}")
+
+
+def maker_of(entry: str, name: str) -> tuple[str, int] | None | bool:
+    """For an entry of the target's parent: False if it is not a temporary of ``name``;
+    ``(host, pid)`` of the run that made it; None when unknown (older qdrefine versions
+    named them ``.NAME.XXXXXXXX.tmp`` / ``.work`` / ``.old``)."""
+    if not entry.startswith(f".{name}"):
+        return False
+    rest = entry[len(name) + 1:]
+    if rest.startswith("~") and rest.endswith((TMP, OLD)):
+        fields = rest[1:].rsplit(".", 1)[0].split("~")
+        if len(fields) == 3 and fields[1].isdigit():
+            return fields[0], int(fields[1])
+        return False
+    if rest.startswith(".") and rest.endswith((TMP, OLD, ".work")) and rest.count(".") == 2:
+        return None
+    return False
+
+
+def alive(host: str, pid: int) -> bool:
+    """Whether the run ``(host, pid)`` may still be going (another host: assumed so)."""
+    if host != socket.gethostname().replace("~", "-").replace("/", "-"):
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def clean(path: PathLike, everything: bool = False) -> list[str]:
+    """Remove the temporaries that runs writing ``path`` left behind; return their URLs.
+
+    A temporary is removed when the process that made it is gone (same host) or its maker
+    is unknown (older versions); with ``everything``, also those of running processes and
+    of other hosts (when no run for ``path`` is in progress anywhere).
+    """
+    url = location(path)
+    parent, name = split(url)
+    fs, root = filesystem(parent or "/")
+    try:
+        entries = [e.rstrip("/").rsplit("/", 1)[-1] for e in fs.ls(root, detail=False)]
+    except (FileNotFoundError, NotADirectoryError):
+        return []
+    removed = []
+    for entry in sorted(entries):
+        owner = maker_of(entry, name)
+        if owner is False:
+            continue
+        if everything or owner is None or not alive(*owner):
+            remove(join(parent, entry))
+            removed.append(join(parent, entry))
+    return removed
+
+
+def remove(url: str) -> None:
+    """Remove whatever is at ``url`` (a store, a temporary), if anything."""
+    fs, root = filesystem(url)
+    with contextlib.suppress(FileNotFoundError, OSError):
+        fs.rm(root, recursive=True)
+
+
+def check_target(url: str) -> None:
+    fs, root = filesystem(url)
+    if is_local(url):
+        parent = os.path.dirname(root)
+        if not os.path.isdir(parent):
+            raise FileNotFoundError(f"{url}: directory {parent} does not exist")
+    if fs.exists(root) and not is_store(url, complete=False):
+        raise FileExistsError(f"{url}: exists and is not a qdrefine mesh store; refusing to "
+                              "replace it")
+
+
+def replace(tmp: str, url: str) -> None:
+    fs, root = filesystem(url)
+    _, tmp_root = filesystem(tmp)
+    if is_local(url):
+        if not os.path.exists(root):
+            os.rename(tmp_root, root)
+            return
+        old = filesystem(temporary(url, OLD))[1]
+        os.rename(root, old)
+        os.rename(tmp_root, root)
+        remove(old)
+        return
+    # object stores: no rename. The old target's root zarr.json goes first (it is no longer
+    # a store), the new one's last (it becomes one only when everything else is there).
+    if fs.exists(root):
+        with contextlib.suppress(FileNotFoundError):
+            fs.rm(f"{root}/zarr.json")
+        fs.rm(root, recursive=True)
+    files = sorted(fs.find(tmp_root))
+    head = f"{tmp_root}/zarr.json"
+    for f in [f for f in files if f != head] + [head]:
+        fs.mv(f, root + f[len(tmp_root):])
+    remove(tmp)

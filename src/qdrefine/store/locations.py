@@ -1,0 +1,48 @@
+"""Where a store is: local paths and URLs (``memory://``, ``s3://``, ``gs://`` ... through
+fsspec), made usable by every process."""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["PathLike", "location", "is_local", "filesystem", "join", "split"]
+
+PathLike = str | os.PathLike
+
+
+def location(path: PathLike) -> str:
+    """``path`` as the string every process can use: a URL (``scheme://...``) unchanged but
+    for a trailing ``/``, a local path made absolute.
+
+    >>> location("memory://a/b.zarr/")
+    'memory://a/b.zarr'
+    """
+    text = os.fspath(path)
+    if "://" in text:
+        return text.rstrip("/")
+    return os.path.abspath(text)
+
+
+def is_local(url: str) -> bool:
+    """Whether ``url`` (from :func:`location`) is a local path."""
+    return "://" not in url or url.startswith("file://")
+
+
+def filesystem(url: str):
+    """``(fsspec filesystem, path within it)`` of ``url``, with no stale listings cached
+    (object stores' filesystems cache directory listings that other writers change)."""
+    import fsspec
+
+    fs, root = fsspec.core.url_to_fs(url)
+    fs.invalidate_cache()
+    return fs, root
+
+
+def join(url: str, name: str) -> str:
+    return f"{url}/{name}"
+
+
+def split(url: str) -> tuple[str, str]:
+    """``(parent URL, name)``."""
+    parent, _, name = url.rpartition("/")
+    return parent, name
