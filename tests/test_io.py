@@ -211,7 +211,8 @@ def test_write_is_atomic(tmp_path, monkeypatch, ext):
     meshio's writers and ours (Triangle's and XDMF's file sets included)."""
     import meshio
 
-    from qdrefine.io import gmsh, triangle, vtu, xdmf
+    from qdrefine.io import triangle, vtu, xdmf
+    from qdrefine.io.gmsh import writing as gmsh_writing
 
     names = {".node": ["keep.node", "keep.ele", "keep.poly"],
              ".xdmf": ["keep.xdmf", "keep.h5"]}.get(ext, [f"keep{ext}"])
@@ -224,7 +225,7 @@ def test_write_is_atomic(tmp_path, monkeypatch, ext):
         raise RuntimeError("disk full")
 
     monkeypatch.setattr(meshio, "write", broken)
-    for module in (gmsh, vtu, triangle):
+    for module in (gmsh_writing, vtu, triangle):
         monkeypatch.setattr(module, "open", _DiskFull, raising=False)
     monkeypatch.setattr(Path, "write_text", lambda self, *a, **k: broken(self))
     with pytest.raises(RuntimeError, match="disk full"):

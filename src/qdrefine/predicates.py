@@ -1,5 +1,9 @@
 """Exact geometric predicates on float64 coordinates (compiled with numba).
 
+One concern, hence one module over 400 lines: the three-stage signs below share their
+error bounds, their exactness conditions and the expansion arithmetic of stage 3, and
+are proved together.
+
 Every decision of qdrefine is the sign of a polynomial of degree two in coordinate
 differences: the orientation ``(b-a) x (c-a)``, the comparison of two squared lengths
 ``|b-a|^2 - |d-c|^2`` and linear forms ``k_uu |u|^2 + k_ww |w|^2 + k_uw u.w`` with

@@ -2,6 +2,9 @@
 doubly covered area, with the exact orientation predicate, in ``O(B log B)`` for ``B``
 edges on any input.
 
+One concern, hence one module over 400 lines: the sweep, its treap and its exact event
+order are one algorithm whose parts rely on each other's invariants.
+
 Why the boundary suffices: interior edges are shared by two triangles walking them in
 opposite directions, so the number of triangles covering a point ``q`` (its *cover*) is the
 winding number of the directed boundary edges around ``q`` (each triangle lies on the left

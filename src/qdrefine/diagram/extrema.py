@@ -1,5 +1,9 @@
 """Certified extrema of the 7T-QD / 7T-D minimum-angle ratio over the shaded region.
 
+One concern, hence one module over 400 lines: the region's boundary, the normalized
+angles, their interval bounds and the branch and bound that certifies the extrema are one
+argument, read top to bottom.
+
 The closure of the shaded region (7T-QD's fan ``O`` where 7T-D uses fan ``D``) is bounded by
 four curves that meet at four corners::
 

@@ -1,5 +1,10 @@
 """One level of uniform refinement of a mesh store on Dask, numbered as in memory.
 
+One concern, hence one module over 400 lines: the driver (:class:`Level`) and the tasks
+it sends to the workers (below it) are the three stages described here, which share the
+run's job description and chunk boundaries; the cluster lives in
+:mod:`qdrefine.distributed.cluster`.
+
 Every array is cut into the source's triangle chunks (``C`` rows); no task holds more than
 about one chunk. Intermediate data stays in Dask (shuffles, results held by the workers)
 or in Zarr arrays under the run's temporary store, never in local files. The stages:

@@ -1,5 +1,8 @@
 """The exact predicates and the canonical labelling as CUDA device functions.
 
+One concern, hence one module over 400 lines: it mirrors :mod:`qdrefine.predicates`
+line by line (and must stay reviewable against it side by side).
+
 Line-by-line ports of :mod:`qdrefine.predicates` and of the labelling of
 :mod:`qdrefine.kernels` (same operations in the same order, same filter bound), in two
 entry points:
