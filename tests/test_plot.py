@@ -59,3 +59,35 @@ def test_compare_draws_one_line_per_scheme():
     np.testing.assert_array_equal(ax.get_lines()[1].get_ydata(), [1, 1, 1])
     with pytest.raises(ValueError, match="unknown metric"):
         plot.compare(rows, "beauty")
+
+
+def test_tags_are_told_apart_without_colour_clashes():
+    """Cell tags take the colour-blind-safe palette; edge tags are black lines of distinct
+    styles (never a fill colour), each over a white underlay."""
+    import matplotlib.colors as mcolors
+
+    m = examples.plate_with_hole()
+    ax = plot.mesh(m, color="tag")
+    faces = next(c for c in ax.collections if c.get_array() is not None)
+    fill = {tuple(np.round(c[:3], 6)) for c in faces.cmap(faces.norm(faces.get_array()))}
+    assert fill == {tuple(np.round(mcolors.to_rgb(c), 6)) for c in plot.PALETTE[:2]}
+    labelled = [c for c in ax.collections if not c.get_label().startswith("_")]
+    assert [c.get_label() for c in labelled] == ["edge tag 1", "edge tag 2"]
+    styles = [tuple(map(str, c.get_linestyle()[0])) for c in labelled]
+    assert len(set(styles)) == 2
+    for c in labelled:
+        assert mcolors.to_hex(c.get_edgecolor()[0]) == "#000000"
+    assert not {mcolors.to_hex(c.get_edgecolor()[0]) for c in labelled} & set(plot.PALETTE[:2])
+    # more tags than colours: repeats are lightened, never the same colour twice
+    assert len({plot.tag_color(i) for i in range(3 * len(plot.PALETTE))}) == 24
+
+
+def test_compared_schemes_differ_in_line_style_and_marker():
+    """Two schemes with the same numbers (7T-QD and 7T-LE on a grid) stay both visible:
+    different line styles, hollow markers of different sizes, palette colours."""
+    rows = report.compare(examples.square(2), ["7t-qd", "7t-le", "4t-red"], levels=1)
+    lines = plot.compare(rows, "min_angle").get_lines()
+    assert len({(str(line.get_linestyle()), line.get_marker()) for line in lines}) == 3
+    assert len({line.get_markersize() for line in lines}) == 3
+    assert all(line.get_markerfacecolor() == "none" for line in lines)
+    assert {line.get_color() for line in lines} <= set(plot.PALETTE)

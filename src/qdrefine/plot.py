@@ -27,10 +27,21 @@ from .mesh import Mesh
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-__all__ = ["mesh", "min_angle_histogram", "compare", "COLORS", "COMPARE_METRICS"]
+__all__ = ["mesh", "min_angle_histogram", "compare", "COLORS", "COMPARE_METRICS", "PALETTE",
+           "LINE_STYLES", "MARKERS"]
 
 #: Choices of ``color`` for :func:`mesh`.
 COLORS = ("min-angle", "tag", "none")
+
+#: Okabe and Ito's colour-blind-safe palette (black last): cell tags and compared schemes.
+PALETTE = ("#E69F00", "#56B4E9", "#009E73", "#F0E442", "#0072B2", "#D55E00", "#CC79A7",
+           "#000000")
+#: Line styles of edge tags and compared schemes: told apart without colour.
+LINE_STYLES = ("solid", "dashed", "dotted", "dashdot", (0, (5, 1, 1, 1, 1, 1)),
+               (0, (1, 3)))
+#: Markers of compared schemes (drawn hollow and smaller one after the other, so that lines
+#: on top of each other stay visible).
+MARKERS = ("o", "s", "D", "^", "v", "<", ">")
 
 #: Metrics :func:`compare` can draw: key in the rows -> axis label.
 COMPARE_METRICS = {
@@ -46,6 +57,15 @@ def _axes(ax: Axes | None, figsize: tuple[float, float] = (7.0, 6.0)) -> Axes:
     import matplotlib.pyplot as plt
 
     return plt.figure(figsize=figsize, layout="constrained").add_subplot()
+
+
+def tag_color(i: int) -> tuple[float, float, float]:
+    """RGB colour of the ``i``-th tag: :data:`PALETTE` in order, lightened on each repeat."""
+    import matplotlib.colors as mcolors
+
+    rgb = np.array(mcolors.to_rgb(PALETTE[i % len(PALETTE)]))
+    lighten = 1.0 - 0.6 ** (i // len(PALETTE))
+    return tuple(float(c) for c in rgb + (1.0 - rgb) * lighten)
 
 
 def _choice(value: str, choices: Sequence[str], name: str) -> str:
@@ -65,13 +85,16 @@ def mesh(m: Mesh, ax: Axes | None = None, *, color: str = "min-angle",
     ax : matplotlib Axes, optional
     color : {"min-angle", "tag", "none"}
         Fill by the minimum angle (degrees, 0..60, colour bar), by the cell tag (one colour
-        per tag, colour bar with the tag values) or not at all.
+        of :data:`PALETTE` per tag, colour bar with the tag values; more than eight tags
+        repeat the colours, lightened) or not at all.
     edges : bool, optional
         Draw the triangle edges; by default only when there are at most 60 000 triangles.
     colorbar : bool
         Add a colour bar for ``"min-angle"`` and ``"tag"``.
     tagged_edges : bool
-        Draw the tagged edges thicker, one colour per edge tag, with a legend.
+        Draw the tagged edges thicker, in black on a white underlay, one line style of
+        :data:`LINE_STYLES` per edge tag (so they never clash with the fill's colours), with
+        a legend.
     title : str, optional
     """
     import matplotlib.colors as mcolors
@@ -101,10 +124,7 @@ def mesh(m: Mesh, ax: Axes | None = None, *, color: str = "min-angle",
             raise ValueError("the mesh has no cell tags to colour by; use color='min-angle' "
                              "or 'none'")
         tags, index = np.unique(np.asarray(m.cell_tags), return_inverse=True)
-        import matplotlib
-
-        base = matplotlib.colormaps["tab10" if len(tags) <= 10 else "tab20"]
-        cmap = mcolors.ListedColormap([base(i % base.N) for i in range(len(tags))])
+        cmap = mcolors.ListedColormap([tag_color(i) for i in range(len(tags))])
         norm = mcolors.BoundaryNorm(np.arange(len(tags) + 1) - 0.5, len(tags))
         art = ax.tripcolor(tri, facecolors=index.reshape(-1).astype(float), cmap=cmap,
                            norm=norm, edgecolors=edgecolor, linewidth=lw)
@@ -115,15 +135,14 @@ def mesh(m: Mesh, ax: Axes | None = None, *, color: str = "min-angle",
     else:
         ax.triplot(tri, color="0.2", linewidth=max(lw, 0.2))
     if tagged_edges and m.edges is not None and len(m.edges):
-        import matplotlib
-
         etags = np.asarray(m.edge_tags)
-        palette = matplotlib.colormaps["Set1"]
         segs = p[np.asarray(m.edges)]
         for i, tag in enumerate(np.unique(etags)):
-            lc = LineCollection(segs[etags == tag], colors=[palette(i % palette.N)],
-                                linewidths=2.0, label=f"edge tag {int(tag)}")
-            ax.add_collection(lc)
+            mine = segs[etags == tag]
+            ax.add_collection(LineCollection(mine, colors="white", linewidths=3.6))
+            ax.add_collection(LineCollection(mine, colors="black", linewidths=2.0,
+                                             linestyles=[LINE_STYLES[i % len(LINE_STYLES)]],
+                                             label=f"edge tag {int(tag)}"))
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), ncols=4, frameon=False,
                   fontsize="small")
     ax.set_aspect("equal")
@@ -167,11 +186,12 @@ def compare(rows: Sequence[Mapping[str, Any]], metric: str, ax: Axes | None = No
     _choice(metric, tuple(COMPARE_METRICS), "metric")
     ax = _axes(ax, (6.0, 4.0))
     schemes = list(dict.fromkeys(r["scheme"] for r in rows))
-    markers = "osD^v<>"
     for i, name in enumerate(schemes):
         mine = [r for r in rows if r["scheme"] == name]
         ax.plot([r["level"] for r in mine], [r[metric] for r in mine],
-                marker=markers[i % len(markers)], label=name)
+                color=PALETTE[(i + 4) % len(PALETTE)], linestyle=LINE_STYLES[i % len(LINE_STYLES)],
+                marker=MARKERS[i % len(MARKERS)], markerfacecolor="none",
+                markersize=max(4.0, 10.0 - 1.5 * i), markeredgewidth=1.4, label=name)
     ax.set_xlabel("refinement level")
     ax.set_ylabel(COMPARE_METRICS[metric])
     levels = sorted({r["level"] for r in rows})
