@@ -6,6 +6,9 @@ Usage (from the repository root; Triangle comes with ``pip install -e '.[bench]'
     python benchmarks/robustness/study.py --quick    # a smoke run with small samples
     python benchmarks/robustness/study.py --page-only  # rewrite the page from the JSON
 
+Before measuring, it runs its own self-checks (``python -m pytest benchmarks/robustness``:
+exact signs, oracles, checks that must catch known bad cases) and stops if one fails.
+
 writes ``docs/robustness.md`` (tables, method, verdicts), ``benchmarks/robustness/
 results.json`` (every count) and ``docs/img/robustness/scipy_failures.{png,svg}``.
 """
@@ -142,6 +145,12 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.quick:
         args.n_qd, args.n_delaunay, args.n_fraction, args.patches = 300, 100, 10, 3
+    # the instruments first: exact signs, oracles, checks that must catch known bad cases
+    check = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                            str(Path(__file__).with_name("test_study.py"))], cwd=ROOT)
+    if check.returncode:
+        print("the study's self-checks failed: nothing measured", file=sys.stderr)
+        return 1
     start = time.perf_counter()
     results = run(args.n_qd, args.n_delaunay, args.n_fraction, args.patches, args.levels,
                   args.seed, args.img)

@@ -1,4 +1,8 @@
-"""Building blocks of the geometry robustness study (benchmarks/robustness, docs/robustness.md).
+"""Self-checks of the geometry robustness study's instruments (docs/robustness.md).
+
+The study is a benchmark, not part of the product: the product's tests (``tests/``) never
+import it. Its instruments are checked here, by ``python -m pytest benchmarks/robustness``,
+which ``python benchmarks/robustness/study.py`` runs before it measures anything.
 
 Exact signs against fractions.Fraction, the exact 7T-QD reference against the independent
 oracle of tests/oracle.py, the float decision on easy and hard shapes, the triangulation
@@ -15,13 +19,13 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from oracle import canonical as oracle_canonical
-from oracle import exact as exact_point
-from oracle import incircle, orient, qd_triangles, seven_points
-from qdrefine import partition, partition_many
-from shapes import family_triangles, triangles
+ROOT = Path(__file__).resolve().parents[2]
+sys.path[:0] = [str(ROOT / "benchmarks"), str(ROOT / "tests")]  # the study; the oracles
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from oracle import canonical as oracle_canonical  # noqa: E402
+from oracle import exact as exact_point  # noqa: E402
+from oracle import incircle, orient, qd_triangles, seven_points  # noqa: E402
+from qdrefine import partition, partition_many  # noqa: E402
 from robustness import (  # noqa: E402
     bad_input,
     checks,
@@ -34,6 +38,7 @@ from robustness import (  # noqa: E402
     report,
     rows,
 )
+from shapes import family_triangles, triangles  # noqa: E402
 
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False, width=64)
 
@@ -306,7 +311,7 @@ def test_page_is_generated_from_the_committed_results():
     fuzzing run, and its figure exists."""
     import json
 
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     results = json.loads((root / "benchmarks/robustness/results.json").read_text())
     page = report.markdown(results, root / "docs/robustness.md", root / "docs/img/robustness",
                            root / "benchmarks/robustness/results.json")
