@@ -293,6 +293,24 @@ def test_near_duplicates_match_all_pairs(n, seed):
         assert close[a, b]
 
 
+@settings(max_examples=20, deadline=None)
+@given(st.integers(40, 300), st.integers(0, 2**32 - 1), st.floats(0.5, 3.0))
+def test_near_duplicates_on_crowded_columns(n, seed, spacing):
+    """Many points in a few columns of cells (points on vertical lines: the search bisects
+    instead of walking), against all pairs."""
+    rng = np.random.default_rng(seed)
+    tol = 1e-3
+    x = rng.choice([0.25, 0.25 + tol / 3, 0.75], n)
+    y = np.round(rng.random(n) * n) * spacing * tol
+    q = np.column_stack([x, y])
+    count, a, b = check.near_duplicates(q, tol)
+    d = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
+    close = (d > 0) & (d <= tol)
+    assert count == int(close.any(axis=1).sum())
+    if count:
+        assert close[a, b]
+
+
 @pytest.mark.parametrize("scheme", ["7t-qd", "4t-red"])
 def test_first_refinement_reuses_the_validation_edges(scheme):
     """Issue 16: one edge numbering per mesh. The sorted edges of the validation serve the

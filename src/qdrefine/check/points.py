@@ -120,6 +120,57 @@ def near_duplicates(q: NDArray, tol: float) -> tuple[int, int, int]:
     return _near_scan(np.ascontiguousarray(q[order]), cx[order], cy[order], order, tol * tol)
 
 
+#: Rows a lone cell walks through its sorted neighbourhood before it bisects instead.
+_WALK = 32
+
+
+@njit(cache=True)
+def _near_neighbour(q, cx, cy, s, e, tol2):
+    """A row ``j`` outside the cell ``s:e`` within ``tol`` of ``q[s]`` (``-1``: none).
+
+    The rows whose cell is at most two columns away are contiguous around ``s:e`` in the
+    (cx, cy) order: walk them outwards (usually none or a few); a crowded column (many
+    points on one vertical line) is bisected per column instead."""
+    j = s - 1
+    while j >= 0 and cx[j] >= cx[s] - 2:
+        if s - j > _WALK:
+            return _near_bisect(q, cx, cy, s, e, tol2)
+        if abs(cy[j] - cy[s]) <= 2 and _within(q, j, s, tol2):
+            return j
+        j -= 1
+    j = e
+    while j < cx.shape[0] and cx[j] <= cx[s] + 2:
+        if j - e >= _WALK:
+            return _near_bisect(q, cx, cy, s, e, tol2)
+        if abs(cy[j] - cy[s]) <= 2 and _within(q, j, s, tol2):
+            return j
+        j += 1
+    return -1
+
+
+@njit(cache=True)
+def _within(q, j, s, tol2):
+    ddx, ddy = q[j, 0] - q[s, 0], q[j, 1] - q[s, 1]
+    d2 = ddx * ddx + ddy * ddy
+    return 0 < d2 <= tol2
+
+
+@njit(cache=True)
+def _near_bisect(q, cx, cy, s, e, tol2):
+    for dx in range(-2, 3):  # a cell's side is tol / sqrt(2): two cells away
+        x = cx[s] + dx
+        lo = np.searchsorted(cx, x)  # the row of cells with this x
+        hi = np.searchsorted(cx, x + 1)
+        a = lo + np.searchsorted(cy[lo:hi], cy[s] - 2)
+        b = lo + np.searchsorted(cy[lo:hi], cy[s] + 3)
+        for j in range(a, b):
+            if s <= j < e:
+                continue
+            if _within(q, j, s, tol2):
+                return j
+    return -1
+
+
 @njit(cache=True)
 def _near_scan(q, cx, cy, order, tol2):
     k = q.shape[0]
@@ -141,22 +192,11 @@ def _near_scan(q, cx, cy, order, tol2):
             if first_a < 0:
                 first_a, first_b = order[s], order[mixed]
         else:  # one position: look for a different point in the neighbouring cells
-            for dx in range(-2, 3):  # a cell's side is tol / sqrt(2): two cells away
-                x = cx[s] + dx
-                lo = np.searchsorted(cx, x)  # the row of cells with this x
-                hi = np.searchsorted(cx, x + 1)
-                a = lo + np.searchsorted(cy[lo:hi], cy[s] - 2)
-                b = lo + np.searchsorted(cy[lo:hi], cy[s] + 3)
-                for j in range(a, b):
-                    if s <= j < e:
-                        continue
-                    ddx, ddy = q[j, 0] - q[s, 0], q[j, 1] - q[s, 1]
-                    d2 = ddx * ddx + ddy * ddy
-                    if 0 < d2 <= tol2:
-                        for i in range(s, e):
-                            near[i] = True
-                        if first_a < 0:
-                            first_a, first_b = order[s], order[j]
-                        break
+            j = _near_neighbour(q, cx, cy, s, e, tol2)
+            if j >= 0:
+                for i in range(s, e):
+                    near[i] = True
+                if first_a < 0:
+                    first_a, first_b = order[s], order[j]
         s = e
     return int(near.sum()), first_a, first_b
