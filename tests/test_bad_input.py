@@ -66,7 +66,9 @@ class Case:
     extra: list[str] = field(default_factory=list)
 
 
-def _content(kind, nodes, tris, message, mesh_message=None, **cells) -> Case:
+def _content(kind, nodes, tris, message, mesh_message, **cells) -> Case:
+    """A content problem: ``message`` in the file's numbering (Gmsh nodes and elements are
+    numbered from 1 by :func:`msh22`), ``mesh_message`` in the arrays' (from 0)."""
     return Case({"in.msh": msh22(nodes, tris, **cells)}, "in.msh", message,
                 arrays=(np.array(nodes, dtype=float)[:, :2], np.array(tris, dtype=int)),
                 kind=kind, mesh_message=mesh_message)
@@ -112,6 +114,7 @@ CASES: dict[str, Case] = {
     "non-triangle cells": Case({"in.msh": msh22(SQ, SQ_TRIS, quads=[(0, 1, 2, 3)])}, "in.msh",
                                "in.msh: holds 1 quad cells", kind="cell-types"),
     "NaN coordinate": _content("non-finite", [(0, 0), (1, 0), ("nan", 1)], [(0, 1, 2)],
+                               "point 3 has a non-finite coordinate (nan, 1.0)",
                                "point 2 has a non-finite coordinate (nan, 1.0)"),
     "infinite coordinate": Case({"i.node": "3 2 0 0\n1 0 0\n2 1 0\n3 inf 1\n",
                                  "i.ele": "1 3 0\n1 1 2 3\n"}, "i.ele",
@@ -121,8 +124,9 @@ CASES: dict[str, Case] = {
                                 kind="non-finite",
                                 mesh_message="point 2 has a non-finite coordinate (inf, 1.0)"),
     "coordinate out of range": _content("coordinate-range", [(0, 0), (1e200, 0), (0, 1)],
-                                        [(0, 1, 2)], "point 1 has a coordinate (1e+200, 0.0) "
-                                        "outside the supported range"),
+                                        [(0, 1, 2)], "point 2 has a coordinate (1e+200, 0.0) "
+                                        "outside the supported range",
+                                        "point 1 has a coordinate (1e+200, 0.0) outside"),
     "index out of range": Case({"x.node": "3 2 0 0\n0 0 0\n1 1 0\n2 0 1\n",
                                 "x.ele": "1 3 0\n0 0 1 9\n"}, "x.ele",
                                "x.ele:2: vertex 9 is not in x.node (vertices 0..2)",
@@ -132,38 +136,46 @@ CASES: dict[str, Case] = {
                                             "0..2"),
     "duplicate vertices": _content("duplicate-points", SQ + [(1.0, 1.0)],
                                    [(0, 1, 2), (0, 4, 3)],
+                                   "points 3 and 5 are both at (1.0, 1.0)",
                                    "points 2 and 4 are both at (1.0, 1.0)"),
     "zero-area triangle": _content("zero-area", [(0, 0), (1, 0), (2, 0)], [(0, 1, 2)],
+                                   "triangle 1 (1, 2, 3) has zero area",
                                    "triangle 0 (0, 1, 2) has zero area"),
     "edge shared by three triangles": _content(
         "overused-edge", SQ + [(2.0, 0.5)], SQ_TRIS + [(0, 4, 2)],
+        "edge (1, 3) is shared by 3 triangles (1, 2, 3)",
         "edge (0, 2) is shared by 3 triangles (0, 1, 2)"),
     "overlapping triangles (folded edge)": _content(
         "folded-edge", SQ + [(2.0, 0.5)], [(0, 1, 2), (0, 4, 2)],
+        "triangles 1 and 2 lie on the same side of their common edge (1, 3)",
         "triangles 0 and 1 lie on the same side of their common edge (0, 2)"),
     "hanging node": _content("hanging-node", HANGING, HANGING_TRIS,
+                             "vertex 4 lies inside edge (1, 2) of triangle 1",
                              "vertex 3 lies inside edge (0, 1) of triangle 0"),
     "boundary edges crossing (self-intersection)": _content(
         "self-intersection", [(0, 0), (2, 0), (0, 2), (1, -1), (1.5, -1), (1.2, 3)],
         [(0, 1, 2), (3, 4, 5)],
-        "edge (0, 1) of triangle 0 and edge (5, 3) of triangle 1 cross: the mesh overlaps "
-        "itself"),
+        "edge (1, 2) of triangle 1 and edge (6, 4) of triangle 2 cross: the mesh overlaps "
+        "itself", "edge (0, 1) of triangle 0 and edge (5, 3) of triangle 1 cross"),
     "separate piece on top (overlap, no edges cross)": _content(
         "overlap", SQ + [(0.2, 0.2), (0.4, 0.2), (0.2, 0.4)], SQ_TRIS + [(4, 5, 6)],
+        "triangle 3 (5, 6, 7) overlaps another part of the mesh",
         "triangle 2 (4, 5, 6) overlaps another part of the mesh"),
     "near-exact hanging node, inside the edge's triangle by 4e-18": _content(
         "overlap", HANGING[:3] + [(1.0, 4e-18)] + HANGING[4:], HANGING_TRIS,
+        "triangle 1 (1, 2, 3) overlaps another part of the mesh",
         "triangle 0 (0, 1, 2) overlaps another part of the mesh"),
     "duplicate of an inner vertex": Case(
         {"in.msh": msh22(INNER, INNER_TRIS)}, "in.msh",
-        "triangle 4 (5, 6, 7) overlaps another part of the mesh",
-        arrays=(np.array(INNER), np.array(INNER_TRIS)), kind="duplicate-points"),
+        "triangle 5 (6, 7, 8) overlaps another part of the mesh",
+        arrays=(np.array(INNER), np.array(INNER_TRIS)), kind="duplicate-points",
+        mesh_message="triangle 4 (5, 6, 7) overlaps another part of the mesh"),
     "3D non-flat input": Case({"in.msh": msh22([(0, 0, 0), (1, 0, 0), (0, 1, 0.5)],
                                                [(0, 1, 2)])}, "in.msh",
                               "in.msh: the mesh is not flat: 1 of 3 points have z != 0",
                               kind="not-flat"),
     "tagged edge not in the mesh": Case({"in.msh": msh22(SQ, SQ_TRIS, lines=[(1, 3)])},
-                                        "in.msh", "edge 0 (1, 3) is not an edge of any "
+                                        "in.msh", "edge 3 (2, 4) is not an edge of any "
                                         "triangle", kind="edge-not-in-mesh"),
 }
 
@@ -528,3 +540,27 @@ def test_sigterm_during_a_write_leaves_nothing_behind(tmp_path):
         assert qdrefine.read(out).n_triangles == 384 * 7**4  # complete, never partial
         out.unlink()
     assert inside
+
+
+def test_messages_use_the_files_own_numbers(tmp_path, run):
+    """A Gmsh file whose nodes are tagged 101.. and elements 1001..: every message names the
+    tags the file uses, not the rows they became, in ``read``, ``check`` and ``check
+    --json``."""
+    path = tmp_path / "tags.msh"
+    path.write_text(
+        "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n5\n104 0 1 0\n101 0 0 0\n"
+        "102 1 0 0\n103 2 0 0\n105 1 1 0\n$EndNodes\n$Elements\n3\n"
+        "1003 2 2 5 5 101 102 103\n1001 2 2 5 5 101 102 105\n1002 1 2 7 7 104 103\n"
+        "$EndElements\n")
+    with pytest.raises(ValueError, match=r"triangle 1003 \(101, 102, 103\) has zero area"):
+        qdrefine.read(path)
+    result = run("check", path, "--json")
+    report = json.loads(result.stdout)
+    assert report["numbered_by"] == "file"
+    by_kind = {p["kind"]: p for p in report["problems"]}
+    assert by_kind["zero-area"]["where"]["triangle"] == 1003
+    assert by_kind["zero-area"]["where"]["vertices"] == [101, 102, 103]
+    assert "edge 1002 (104, 103) is not an edge of any triangle" in \
+        by_kind["edge-not-in-mesh"]["message"]
+    text = run("check", path).stdout
+    assert "named by the file's own node and element numbers" in text

@@ -21,7 +21,7 @@ Examples
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from ..memory import check_needed, validation_needed
 from ..numbering import index_dtype, sort_edges
@@ -43,7 +43,9 @@ __all__ = ["KINDS", "MIN_ANGLE", "NEAR_DUPLICATE", "Checked", "Problem", "bucket
 def find(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | None = None,
          edges: ArrayLike | None = None, edge_tags: ArrayLike | None = None, *,
          flip_clockwise: bool = False, stop_at_error: bool = False, warnings: bool = True,
-         min_angle: float = MIN_ANGLE, geometry: bool = True, base: int = 0) -> Checked:
+         min_angle: float = MIN_ANGLE, geometry: bool = True, base: int = 0,
+         point_numbers: ArrayLike | None = None, triangle_numbers: ArrayLike | None = None,
+         edge_numbers: ArrayLike | None = None) -> Checked:
     """All problems of a mesh given as arrays.
 
     Parameters
@@ -66,6 +68,13 @@ def find(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | None = 
         False skips every check that uses coordinates (e.g. for non-flat input).
     base : int
         Number of the first point and triangle in messages (files numbered from 1).
+    point_numbers : (N,) int, optional
+        The file's own number of every point (e.g. Gmsh node tags), used in messages and
+        ``where`` instead of ``row + base``.
+    triangle_numbers : (M,) int, optional
+        The file's own number of every triangle (e.g. Gmsh element tags), likewise.
+    edge_numbers : (K,) int, optional
+        The file's own number of every tagged edge (Gmsh line element tags), likewise.
 
     Returns
     -------
@@ -73,7 +82,8 @@ def find(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | None = 
         Problems in the order checked (shape, coordinates, indices, orientation, topology,
         tags, warnings) and the normalized arrays.
     """
-    found = Findings(stop_at_error, base)
+    found = Findings(stop_at_error, base, _numbers(point_numbers), _numbers(triangle_numbers),
+                     _numbers(edge_numbers))
     out = Checked(found.problems)
     try:
         _run(found, out, points, triangles, cell_tags, edges, edge_tags, flip_clockwise,
@@ -81,6 +91,10 @@ def find(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | None = 
     except Stop:
         pass
     return out
+
+
+def _numbers(values: ArrayLike | None) -> NDArray[np.int64] | None:
+    return None if values is None else np.asarray(values, dtype=np.int64).reshape(-1)
 
 
 def _run(found: Findings, out: Checked, points, triangles, cell_tags, edges, edge_tags,
@@ -106,7 +120,9 @@ def _run(found: Findings, out: Checked, points, triangles, cell_tags, edges, edg
     used = None
     if not found.stop:
         used = edge_checks.used(t, n)
-        out.summary = edge_checks.summary(t, used, topo) | {"numbered_from": found.base}
+        out.summary = edge_checks.summary(t, used, topo) | {
+            "numbered_from": found.base,
+            "numbered_by": "file" if found.point_numbers is not None else "row"}
     manifold = edge_checks.overused(found, topo)
     if oriented:
         oriented = edge_checks.folded(found, topo) and manifold

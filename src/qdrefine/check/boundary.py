@@ -35,16 +35,16 @@ def boundary(found: Findings, p: NDArray, topo: Topology, covers: bool) -> None:
         report()
     if n_near and not found.stop and not crossing[0] and not n_cov:
         v, r, d = int(near[0]), int(near[1]), float(near[2])
-        tri = int(btris[r]) + found.base
-        found.add("near-hanging-node", f"vertex {v + found.base} is off edge "
+        tri = found.triangle(btris[r])
+        found.add("near-hanging-node", f"vertex {found.point(v)} is off edge "
                   f"{tuple(ids(bedges[r]))} of triangle {tri} by only {d:.2g} times its length "
                   "(outside it: a crack; refinement decides it exactly)", n_near,
-                  vertex=v + found.base, edge=ids(bedges[r]), triangle=tri, distance=d)
+                  vertex=found.point(v), edge=ids(bedges[r]), triangle=tri, distance=d)
 
 
 def _crossing(found: Findings, crossing: NDArray, bedges: NDArray, btris: NDArray) -> None:
     r, s = int(crossing[1]), int(crossing[2])
-    ta, tb = int(btris[r]) + found.base, int(btris[s]) + found.base
+    ta, tb = found.triangle(btris[r]), found.triangle(btris[s])
     how = ("cross" if crossing[0] == CROSSING else
            "run along each other with both triangles on the same side")
     found.add("self-intersection", f"edge {tuple(found.ids(bedges[r]))} of triangle {ta} and "
@@ -55,7 +55,7 @@ def _crossing(found: Findings, crossing: NDArray, bedges: NDArray, btris: NDArra
 
 def _covered(found: Findings, row: int, count: int, bedges: NDArray, btris: NDArray,
              t: NDArray) -> None:
-    tri = int(btris[row]) + found.base
+    tri = found.triangle(btris[row])
     found.add("overlap", f"triangle {tri} {tuple(found.ids(t[btris[row]]))} overlaps another "
               f"part of the mesh (the area along its edge {tuple(found.ids(bedges[row]))} is "
               "covered twice)", count, triangle=tri, edge=found.ids(bedges[row]))
@@ -64,10 +64,10 @@ def _covered(found: Findings, row: int, count: int, bedges: NDArray, btris: NDAr
 def _hanging(found: Findings, hits: NDArray, count: int, bedges: NDArray, btris: NDArray
              ) -> None:
     v, row = (int(x) for x in hits[0])
-    edge, tri = found.ids(bedges[row]), int(btris[row]) + found.base
-    found.add("hanging-node", f"vertex {v + found.base} lies inside edge {tuple(edge)} of "
+    edge, tri = found.ids(bedges[row]), found.triangle(btris[row])
+    found.add("hanging-node", f"vertex {found.point(v)} lies inside edge {tuple(edge)} of "
               f"triangle {tri} (a hanging node: the mesh is not conforming there)",
-              count, vertex=v + found.base, edge=edge, triangle=tri)
+              count, vertex=found.point(v), edge=edge, triangle=tri)
 
 
 def hanging_nodes(points: NDArray, bedges: NDArray) -> tuple[int, NDArray[np.int64]]:

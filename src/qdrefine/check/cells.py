@@ -58,9 +58,10 @@ def in_range(found: Findings, t: NDArray, n: int) -> bool:
         return True
     i = int(np.flatnonzero(bad)[0])
     b = found.base
-    found.add("index-range", f"triangle {i + b} {tuple(found.ids(t[i]))} has a vertex index "
-              f"outside {b}..{n - 1 + b}", np.count_nonzero(bad), triangle=i + b,
-              vertices=found.ids(t[i]))
+    vertices = [int(v) + b for v in t[i]]  # not all are points: numbered from the base
+    found.add("index-range", f"triangle {found.triangle(i)} {tuple(vertices)} has a vertex "
+              f"index outside {b}..{n - 1 + b}", np.count_nonzero(bad),
+              triangle=found.triangle(i), vertices=vertices)
     return False
 
 
@@ -73,18 +74,18 @@ def coordinates(found: Findings, p: NDArray) -> bool:
     bad = ~np.isfinite(p).all(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        found.add("non-finite", f"point {i + found.base} has a non-finite coordinate "
-                  f"{tuple(p[i].tolist())}", np.count_nonzero(bad), point=i + found.base)
+        found.add("non-finite", f"point {found.point(i)} has a non-finite coordinate "
+                  f"{tuple(p[i].tolist())}", np.count_nonzero(bad), point=found.point(i))
         ok = False
     a = np.abs(np.where(np.isfinite(p), p, 0.0))
     bad = ((a > hi) | ((a < lo) & (a != 0))).any(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         found.add("coordinate-range",
-                  f"point {i + found.base} has a coordinate {tuple(p[i].tolist())} outside "
+                  f"point {found.point(i)} has a coordinate {tuple(p[i].tolist())} outside "
                   f"the supported range: each coordinate must be 0 or between {lo:g} and "
                   f"{hi:g} in magnitude (exact predicates; rescale the mesh or round tiny "
-                  "values to 0)", np.count_nonzero(bad), point=i + found.base)
+                  "values to 0)", np.count_nonzero(bad), point=found.point(i))
         ok = False
     return ok
 
@@ -96,20 +97,20 @@ def orientation(found: Findings, p: NDArray, t: NDArray, flip: bool) -> tuple[bo
     zero = signs == 0
     if zero.any():
         i = int(np.flatnonzero(zero)[0])
-        found.add("zero-area", f"triangle {i + found.base} {tuple(found.ids(t[i]))} has zero "
-                  "area", np.count_nonzero(zero), triangle=i + found.base,
+        found.add("zero-area", f"triangle {found.triangle(i)} {tuple(found.ids(t[i]))} has zero "
+                  "area", np.count_nonzero(zero), triangle=found.triangle(i),
                   vertices=found.ids(t[i]))
     cw = signs < 0
     if cw.any():
         i = int(np.flatnonzero(cw)[0])
         k = int(np.count_nonzero(cw))
-        where = {"triangle": i + found.base, "vertices": found.ids(t[i])}
+        where = {"triangle": found.triangle(i), "vertices": found.ids(t[i])}
         if flip:
             found.add("clockwise", f"{k} of {len(t)} triangles were clockwise and have been "
                       "flipped", k, "warning", **where)
             t[cw] = t[cw][:, ::-1]
         else:
-            found.add("clockwise", f"triangle {i + found.base} {tuple(found.ids(t[i]))} is "
+            found.add("clockwise", f"triangle {found.triangle(i)} {tuple(found.ids(t[i]))} is "
                       "clockwise; triangles must be counter-clockwise with positive area", k,
                       **where)
     return not zero.any() and (flip or not cw.any()), not zero.any()
@@ -159,14 +160,16 @@ def tagged_edges(found: Findings, edges, edge_tags, topo: Topology, n: int,
     bad = ((e < 0) | (e >= n)).any(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        found.add("edge-tags", f"edge {i} {tuple(found.ids(e[i]))} has a vertex index outside "
+        ends = tuple(int(v) + found.base for v in e[i])  # not all are points
+        found.add("edge-tags", f"edge {found.edge(i)} {ends} has a vertex index outside "
                   f"{found.base}..{n - 1 + found.base}", np.count_nonzero(bad), edge_row=i)
         return None, None
 
     missing = edge_ids(topo.edges, e, n) < 0
     if missing.any():
         i = int(np.flatnonzero(missing)[0])
-        found.add("edge-not-in-mesh", f"edge {i} {tuple(found.ids(e[i]))} is not an edge of "
+        found.add("edge-not-in-mesh", f"edge {found.edge(i)} {tuple(found.ids(e[i]))} is not "
+                  "an edge of "
                   "any triangle", np.count_nonzero(missing), edge_row=i, edge=found.ids(e[i]))
         return None, None
     return np.ascontiguousarray(e, dtype=dtype), et
@@ -182,7 +185,7 @@ def small_angles(found: Findings, p: NDArray, t: NDArray, min_angle: float) -> N
         angle = float(min_angles(p, t[i:i + 1])[0])  # the value quality reports, bit for bit
         found.add("small-angle", f"{int(small.sum())} triangles have an angle below "
                   f"{min_angle:g} degrees (smallest: {angle:.3g} degrees in triangle "
-                  f"{i + found.base})", int(small.sum()), triangle=i + found.base,
+                  f"{found.triangle(i)})", int(small.sum()), triangle=found.triangle(i),
                   angle=angle)
 
 

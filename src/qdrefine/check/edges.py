@@ -154,7 +154,7 @@ def overused(found: Findings, topo: Topology) -> bool:
         return True
     g = topo.first_over
     e = topo.edges
-    tris = [i + found.base for i in topo.triangles_of(g)]
+    tris = [found.triangle(i) for i in topo.triangles_of(g)]
     found.add("overused-edge", f"edge {tuple(found.ids(e[g]))} is shared by "
               f"{topo.count(g)} triangles {tuple(tris)}; at most two may share an edge",
               topo.n_over, edge=found.ids(e[g]), triangles=tris)
@@ -167,7 +167,7 @@ def folded(found: Findings, topo: Topology) -> bool:
         return True
     g = topo.first_fold
     e = topo.edges
-    tris = [i + found.base for i in topo.triangles_of(g)]
+    tris = [found.triangle(i) for i in topo.triangles_of(g)]
     found.add("folded-edge", f"triangles {tris[0]} and {tris[1]} lie on the same side of "
               f"their common edge {tuple(found.ids(e[g]))}: they overlap",
               topo.n_fold, edge=found.ids(e[g]), triangles=tris)
@@ -179,8 +179,8 @@ def unused(found: Findings, used: NDArray) -> None:
     if not used.all():
         unused = np.flatnonzero(~used)
         found.add("unused-points", f"{len(unused)} of {n} points are used by no triangle "
-                  f"(first: point {int(unused[0]) + found.base}); they are kept",
-                  len(unused), point=int(unused[0]) + found.base)
+                  f"(first: point {found.point(unused[0])}); they are kept",
+                  len(unused), point=found.point(unused[0]))
 
 
 def pinched(found: Findings, bedges: NDArray) -> None:
@@ -188,6 +188,6 @@ def pinched(found: Findings, bedges: NDArray) -> None:
     pinched = np.flatnonzero(out > 1)
     if len(pinched):
         v = int(pinched[0])
-        found.add("pinched-vertex", f"vertex {v + found.base} joins {int(out[v])} separate fans "
+        found.add("pinched-vertex", f"vertex {found.point(v)} joins {int(out[v])} separate fans "
                   "of triangles (the mesh touches itself there)", len(pinched),
-                  vertex=v + found.base)
+                  vertex=found.point(v))

@@ -18,8 +18,8 @@ def duplicates(found: Findings, p: NDArray, ids: NDArray) -> None:
     if count:
         a, b = (int(v) for v in pairs[np.lexsort(pairs[:, ::-1].T)[0]])
         xy = tuple(p[a].tolist())
-        found.add("duplicate-points", f"points {a + found.base} and {b + found.base} are both "
-                  f"at {xy}", count, points=[a + found.base, b + found.base], at=list(xy))
+        found.add("duplicate-points", f"points {found.point(a)} and {found.point(b)} are both "
+                  f"at {xy}", count, points=[found.point(a), found.point(b)], at=list(xy))
 
 
 @njit(cache=True)
@@ -98,9 +98,9 @@ def near_duplicate_points(found: Findings, p: NDArray, ids: NDArray) -> None:
     if count:
         a, b = int(ids[a]), int(ids[b])
         d = float(np.hypot(*(p[a] - p[b])))
-        found.add("near-duplicate-points", f"points {a + found.base} and {b + found.base} are "
+        found.add("near-duplicate-points", f"points {found.point(a)} and {found.point(b)} are "
                   f"only {d:.2g} apart ({d / extent:.2g} of the mesh's extent) at "
-                  f"{tuple(p[a].tolist())}", count, points=[a + found.base, b + found.base],
+                  f"{tuple(p[a].tolist())}", count, points=[found.point(a), found.point(b)],
                   distance=d)
 
 

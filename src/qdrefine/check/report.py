@@ -122,13 +122,19 @@ class Stop(Exception):
 
 
 class Findings:
-    """The problems found so far; raises :class:`Stop` at the first error when ``stop``;
-    ``base`` is the number of the first point and triangle in messages."""
+    """The problems found so far; raises :class:`Stop` at the first error when ``stop``.
+    Messages number points, triangles and tagged edges by ``point_numbers`` /
+    ``triangle_numbers`` / ``edge_numbers`` (the file's own numbers, one per row) where
+    given, else from ``base`` (edges: from 0)."""
 
-    def __init__(self, stop: bool, base: int) -> None:
+    def __init__(self, stop: bool, base: int, point_numbers: NDArray | None = None,
+                 triangle_numbers: NDArray | None = None,
+                 edge_numbers: NDArray | None = None) -> None:
         self.problems: list[Problem] = []
         self.stop = stop
         self.base = base
+        self.point_numbers, self.triangle_numbers = point_numbers, triangle_numbers
+        self.edge_numbers = edge_numbers
 
     def add(self, kind: str, message: str, count: int = 1, severity: str = "",
             **where: Any) -> None:
@@ -141,4 +147,26 @@ class Findings:
         self.add("skipped", f"{what} not checked: {because}", severity="note")
 
     def ids(self, values: ArrayLike) -> list[int]:
-        return [int(v) + self.base for v in np.ravel(values)]
+        """The numbers of points ``values`` in messages (the file's own, when known)."""
+        return [self.point(v) for v in np.ravel(values)]
+
+    def point(self, row: int) -> int:
+        """The number of point ``row`` in messages: the file's node number when the reader
+        gave them, else ``row + base``."""
+        if self.point_numbers is not None:
+            return int(self.point_numbers[row])
+        return int(row) + self.base
+
+    def triangle(self, row: int) -> int:
+        """The number of triangle ``row`` in messages: the file's element number when the
+        reader gave them, else ``row + base``."""
+        if self.triangle_numbers is not None:
+            return int(self.triangle_numbers[row])
+        return int(row) + self.base
+
+    def edge(self, row: int) -> int:
+        """The number of tagged edge ``row`` in messages: the file's element number of the
+        line when the reader gave them, else the row."""
+        if self.edge_numbers is not None:
+            return int(self.edge_numbers[row])
+        return int(row)

@@ -48,8 +48,11 @@ def format_report(report: dict[str, Any]) -> str:
         lines.append(f"{report['file']}: {report['points']} points ({report['used_points']} "
                      f"used), {report['triangles']} triangles, {report['edges']} edges "
                      f"({report['boundary_edges']} on the boundary), Euler characteristic "
-                     f"{report['euler_characteristic']}; points and triangles numbered from "
-                     f"{report.get('numbered_from', 0)} in the order of the file")
+                     f"{report['euler_characteristic']}; " + (
+                         "points and triangles named by the file's own node and element "
+                         "numbers" if report.get("numbered_by") == "file" else
+                         f"points and triangles numbered from {report.get('numbered_from', 0)}"
+                         " in the order of the file"))
     for p in report["problems"]:
         lines.append(f"{p['severity']:8} {p['kind']:17} {p['count']:>8}  {p['message']}")
     verdict = "usable" if report["usable"] else "NOT usable"

@@ -167,7 +167,9 @@ def mesh_of(raw: RawMesh) -> Mesh:
         if problem.severity == "error":
             raise ValueError(problem.message)
     found = find(raw.points, raw.triangles, raw.cell_tags, raw.edges, raw.edge_tags,
-                 flip_clockwise=True, stop_at_error=True, warnings=False, base=raw.base)
+                 flip_clockwise=True, stop_at_error=True, warnings=False, base=raw.base,
+                 point_numbers=raw.point_numbers, triangle_numbers=raw.triangle_numbers,
+                 edge_numbers=raw.edge_numbers)
     problems = [raw.locate(p) for p in found.problems]
     for problem in problems:
         if problem.severity == "error":
@@ -196,7 +198,9 @@ def check_file(path: PathLike, min_angle: float = MIN_ANGLE) -> tuple[RawMesh, C
     """
     raw = read_raw(path)
     found = find(raw.points, raw.triangles, raw.cell_tags, raw.edges, raw.edge_tags,
-                 flip_clockwise=True, min_angle=min_angle, geometry=raw.flat, base=raw.base)
+                 flip_clockwise=True, min_angle=min_angle, geometry=raw.flat, base=raw.base,
+                 point_numbers=raw.point_numbers, triangle_numbers=raw.triangle_numbers,
+                 edge_numbers=raw.edge_numbers)
     seen = {p.kind for p in raw.problems}
     found.problems[:] = raw.problems + [raw.locate(p) for p in found.problems
                                         if p.kind not in seen]

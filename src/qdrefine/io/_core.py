@@ -29,8 +29,9 @@ class RawMesh:
     (one row per point / triangle), ``physical_names`` (``(dim, tag) -> name``) and
     ``transitions`` (``(M, 3)`` refinement history); the problems the reader itself found
     (non-flat points, other cell types, bad tags), whether the points are flat, the number
-    of the first point and triangle in the file, and for Triangle files the line of each
-    point, triangle and tagged edge (``lines[kind] = (file, (K,) line numbers)``)."""
+    of the first point and triangle in the file (or the file's own number of each, for
+    messages), and for Triangle files the line of each point, triangle and tagged edge
+    (``lines[kind] = (file, (K,) line numbers)``)."""
 
     path: Path
     points: NDArray[np.float64]
@@ -46,6 +47,11 @@ class RawMesh:
     cell_data: dict[str, NDArray] = field(default_factory=dict)
     physical_names: dict[tuple[int, int], str] = field(default_factory=dict)
     transitions: NDArray | None = None
+    #: The file's own number of every point, triangle and tagged edge (Gmsh node and element
+    #: tags), for messages; None: numbered from ``base`` in the order of the file.
+    point_numbers: NDArray | None = None
+    triangle_numbers: NDArray | None = None
+    edge_numbers: NDArray | None = None
 
     def problem(self, kind: str, message: str, count: int = 1, **where) -> None:
         """Record a problem found while reading (message prefixed with the file name)."""

@@ -611,6 +611,7 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
     for i, (name, _) in enumerate(blocks):
         by_kind.setdefault(name, []).append(i)
     merged, merged_tags, tri_ids = [], [], np.empty(0, np.int64)
+    line_ids, line_tags = np.empty(0, np.int64), np.empty(0, np.int64)
     for name, members in by_kind.items():
         rows = np.concatenate([blocks[i][1] for i in members])
         tg = np.concatenate([block_tags[i] for i in members])
@@ -622,8 +623,17 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
         merged_tags.append(tg)
         if name == "triangle":
             tri_ids = ids
+        elif name == "line":
+            line_ids, line_tags = ids, tg
     raw = from_blocks(f.path, c.points, merged, merged_tags)
     raw.physical_names = dict(c.names)
+    # messages name points and triangles by the file's node and element tags
+    raw.point_numbers = np.asarray(tags, dtype=np.int64)
+    if len(tri_ids) == len(raw.triangles):
+        raw.triangle_numbers = np.asarray(tri_ids, dtype=np.int64)
+    kept_lines = line_ids[np.asarray(line_tags) != 0]  # the lines that are tagged edges
+    if raw.edges is not None and len(kept_lines) == len(raw.edges):
+        raw.edge_numbers = np.asarray(kept_lines, dtype=np.int64)
     point_data = {name: _field(c, "point", name, v, _rows_of(tags, t, contiguous), len(tags))
                   for name, (t, v) in c.node_data.items()}
     cell_data = {}
