@@ -338,7 +338,8 @@ def test_too_thin_for_float64_children_command_line(tmp_path):
     out = tmp_path / "out.msh"
     result = cli("refine", path, out)
     assert result.returncode == 1
-    assert result.stderr.startswith(f"qdrefine: error: {path}: triangle 0 (0, 1, 2) is too "
+    # named as in the file: element 1, nodes 1 2 3
+    assert result.stderr.startswith(f"qdrefine: error: {path}: triangle 1 (1, 2, 3) is too "
                                     "thin for its distance from the origin")
     assert result.stderr.count("\n") == 1
     assert not out.exists() and _snapshot(tmp_path) == before
@@ -367,7 +368,8 @@ def test_near_hanging_node_outside_is_a_warning_and_refines(tmp_path, run):
 @pytest.mark.parametrize("levels", [2, 3])
 def test_refusal_at_level_k_names_the_input_triangle(tmp_path, levels, run):
     """A needle refined once fine but refused later: the message names the triangle of IN
-    (0-based row), not one of the intermediate mesh."""
+    (the API: its row; the command line: the file's element and node numbers), not one of
+    the intermediate mesh."""
     h = {2: 1e-8, 3: 3e-8}[levels]
     points = np.array([[0, 0], [1, 0], [0.5, 0.9], [0.5, -h]]) + 1e7
     path = tmp_path / "needles.msh"
@@ -379,7 +381,7 @@ def test_refusal_at_level_k_names_the_input_triangle(tmp_path, levels, run):
     before = _snapshot(tmp_path)
     result = run("refine", path, tmp_path / "out.msh", "--levels", levels)
     assert result.returncode == 1 and result.stderr.count("\n") == 1
-    assert result.stderr.startswith(f"qdrefine: error: {path}: triangle 1 (0, 3, 1) cannot be "
+    assert result.stderr.startswith(f"qdrefine: error: {path}: triangle 2 (1, 4, 2) cannot be "
                                     f"refined {levels} levels: its descendant ")
     assert _snapshot(tmp_path) == before
 

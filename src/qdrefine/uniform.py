@@ -136,7 +136,8 @@ def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: 
 
 class RefusedTriangle(ValueError):
     """A triangle that refinement refuses: ``triangle`` (its row), ``vertices`` and
-    ``reason`` (the message is ``"triangle {triangle} {vertices} {reason}"``)."""
+    ``reason`` (the message is ``"triangle {triangle} {vertices} {reason}"``, or names them
+    by a file's own numbers after :meth:`numbered`)."""
 
     def __init__(self, triangle: int, vertices: tuple[int, ...], reason: str) -> None:
         self.triangle, self.vertices, self.reason = triangle, vertices, reason
@@ -151,8 +152,15 @@ class RefusedTriangle(ValueError):
         t = self.triangle // n_children ** (level - 1)
         return RefusedTriangle(t, tuple(int(v) for v in mesh.triangles[t]),
                                f"cannot be refined {level} levels: its descendant "
-                               f"{self.triangle} {self.vertices} of level {level - 1} "
-                               f"{self.reason}")
+                               f"{self.triangle} {self.vertices} of level {level - 1} (rows "
+                               f"and points of that level's mesh, from 0) {self.reason}")
+
+    def numbered(self, triangle: int, vertices: tuple[int, ...]) -> RefusedTriangle:
+        """The same refusal with the triangle and its vertices named by other numbers (a
+        file's own element and node numbers)."""
+        out = RefusedTriangle(triangle, vertices, self.reason)
+        out.triangle, out.vertices = self.triangle, self.vertices  # rows, for the API
+        return out
 
 
 def split_tagged_edges(tagged: NDArray, tags: NDArray, edges: NDArray, n: int, k: int,

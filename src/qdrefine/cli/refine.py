@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..adaptive import refine_marked
-from ..io import read, write
+from ..io import RawMesh, mesh_of, read_raw, write
 from ..marking import mark_box, mark_file, mark_tag
 from ..memory import check_memory
 from ..mesh import Mesh
@@ -82,9 +82,10 @@ def run(args: argparse.Namespace) -> int:
         start = time.perf_counter()
         with _common.Progress(steps + 2, args.quiet) as progress:
             progress.step(f"reading {args.input}")
-            mesh = read(args.input)
+            raw = read_raw(args.input)
+            mesh = mesh_of(raw)
             try:
-                fine, summary = _refiner(args)(mesh, args, progress)
+                fine, summary = _refiner(args)(mesh, args, progress, raw)
             except ValueError as exc:  # e.g. a triangle too thin for float64 children
                 if str(exc).startswith(f"{args.input}:"):
                     raise
@@ -118,8 +119,8 @@ def _refiner(args: argparse.Namespace):
     return _uniform
 
 
-def _uniform(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress
-             ) -> tuple[Mesh, str]:
+def _uniform(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress,
+             raw: RawMesh) -> tuple[Mesh, str]:
     levels = 1 if args.levels is None else args.levels
     check_memory(mesh, args.scheme, levels)  # all levels, before the first one allocates
     n0, first = mesh.n_triangles, mesh
@@ -127,8 +128,12 @@ def _uniform(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress
         progress.step(f"refining, level {level}/{levels}")
         try:
             mesh = refine(mesh, args.scheme)
-        except RefusedTriangle as exc:  # named by the triangle of IN (0-based row)
-            raise exc.at_input(first, level, get_scheme(args.scheme).n_children) from None
+        except RefusedTriangle as exc:  # named by the triangle of IN, in IN's numbering
+            exc = exc.at_input(first, level, get_scheme(args.scheme).n_children)
+            if raw.triangle_numbers is not None and raw.point_numbers is not None:
+                exc = exc.numbered(int(raw.triangle_numbers[exc.triangle]),
+                                   tuple(int(raw.point_numbers[v]) for v in exc.vertices))
+            raise exc from None
     return mesh, (f"{n0} triangles refined by {args.scheme}, {levels} level"
                   f"{'s' if levels != 1 else ''}")
 
@@ -166,8 +171,8 @@ def _on_dask(args: argparse.Namespace) -> int:
     return 0
 
 
-def _local(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress
-           ) -> tuple[Mesh, str]:
+def _local(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress,
+           raw: RawMesh) -> tuple[Mesh, str]:
     """``--cycles`` rounds of mark and refine (transitions coarsened before refined)."""
     cycles = 1 if args.cycles is None else args.cycles
     mark = _marker(mesh, args)
