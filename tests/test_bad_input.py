@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from dataclasses import dataclass, field
@@ -566,3 +567,24 @@ def test_messages_use_the_files_own_numbers(tmp_path, run):
         by_kind["edge-not-in-mesh"]["message"]
     text = run("check", path).stdout
     assert "named by the file's own node and element numbers" in text
+
+
+def test_reading_memory_is_checked_before_the_file_is_read(tmp_path, monkeypatch, run):
+    """Issue 17: the memory check covers reading too, from the size of the file and the
+    files it names (XDMF's HDF5 data), before anything is read."""
+    from qdrefine.memory import reading_needed_for_bytes
+
+    path = tmp_path / "m.xdmf"
+    qdrefine.write(path, examples.square(30))
+    size = path.stat().st_size + path.with_suffix(".h5").stat().st_size
+    assert reading_needed_for_bytes(size) >= 3 * size
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, str(2 * size))
+    with pytest.raises(MemoryError, match=rf"^reading {re.escape(str(path))} \([\d.]+ MiB "
+                                          r"with the files it names\) needs about "):
+        qdrefine.read(path)
+    result = run("refine", path, tmp_path / "out.vtu")
+    assert result.returncode == 1 and result.stderr.count("\n") == 1
+    assert result.stderr.startswith(f"qdrefine: error: reading {path}")
+    assert not (tmp_path / "out.vtu").exists()
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "1GiB")
+    assert qdrefine.read(path).n_triangles == examples.square(30).n_triangles

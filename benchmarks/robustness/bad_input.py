@@ -77,7 +77,7 @@ def cases() -> list[Case]:
          ["check", "in.msh"], True),
         ("refused at level 2: names the input triangle", {"in.msh": _needles()},
          ["refine", "in.msh", "out.msh", "--levels", "2"], False),
-        ("validation over the memory limit", {"in.msh": _square(30)},
+        ("reading over the memory limit", {"in.msh": _square(30)},
          ["refine", "in.msh", "out.vtu", "ENV:QDREFINE_MEMORY_LIMIT=50KiB"], False),
     ]
 

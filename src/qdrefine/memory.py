@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from .mesh import Mesh
 
 __all__ = ["check_memory", "memory_needed", "available_memory", "MEMORY_LIMIT_VARIABLE",
-           "validation_needed", "reading_needed", "check_needed"]
+           "validation_needed", "reading_needed_for_bytes", "check_needed"]
 
 #: Environment variable capping the memory qdrefine may plan to use (e.g. ``4GiB``).
 MEMORY_LIMIT_VARIABLE = "QDREFINE_MEMORY_LIMIT"
@@ -37,12 +37,13 @@ def validation_needed(n_points: int, n_triangles: int, n_boundary: int | None = 
     return 16 * n + n + (3 * idx + 1 + 3 * (2 + 2 * idx) + 3 * idx + 3) * m + 160 * b
 
 
-def reading_needed(n_points: int, n_triangles: int) -> int:
-    """Peak bytes of reading a mesh file that declares these counts and validating it: the
-    arrays as parsed (``24`` bytes per point with ``z``, ``24 + 8`` per triangle with its
-    tag, in ``int64``), then :func:`validation_needed` on top."""
-    n, m = int(n_points), int(n_triangles)
-    return 24 * n + 32 * m + validation_needed(n, m)
+def reading_needed_for_bytes(size: int) -> int:
+    """Peak bytes of reading mesh files of ``size`` bytes, before their counts are known (an
+    estimate from above): the bytes themselves, a decoded copy of text, and the parsed
+    arrays, which take no more than the file does (``int32`` indices of binary files become
+    ``int64``: twice as many bytes, for at most half the file). Compressed VTU data can
+    expand beyond this; its arrays are then checked by the validation's estimate."""
+    return 3 * int(size)
 
 
 def check_needed(need: int, what: str) -> None:

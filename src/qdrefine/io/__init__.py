@@ -54,6 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from ..check import MIN_ANGLE, Checked, find
+from ..memory import check_needed, reading_needed_for_bytes
 from ..mesh import Mesh, _data, _names, _transitions
 from . import gmsh, obj, triangle, vtu, xdmf
 from ._core import RawMesh, atomic_path, atomic_paths, permission_bits
@@ -214,7 +215,28 @@ def read_raw(path: PathLike) -> RawMesh:
     truncated file) with the file name first.
     """
     path = Path(path)
-    return _format_of(path).reader()(path)
+    reader = _format_of(path).reader()
+    size = _bytes_of(path)
+    check_needed(reading_needed_for_bytes(size),
+                 f"reading {path} ({size / 2**20:.3g} MiB with the files it names)")
+    return reader(path)
+
+
+#: Companion files read with a mesh file: XDMF's HDF5 data, Triangle's three files.
+_COMPANIONS = {".xdmf": (".h5",), ".node": (".ele", ".poly"), ".ele": (".node", ".poly"),
+               ".poly": (".node", ".ele")}
+
+
+def _bytes_of(path: Path) -> int:
+    """Bytes of ``path`` and its companion files (0 for what does not exist: the reader
+    says so)."""
+    total = 0
+    for p in (path, *(path.with_suffix(e) for e in _COMPANIONS.get(path.suffix.lower(), ()))):
+        try:
+            total += p.stat().st_size if p.is_file() else 0
+        except OSError:
+            pass
+    return total
 
 
 # --------------------------------------------------------------------------------------------
