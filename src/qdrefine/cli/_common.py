@@ -43,6 +43,19 @@ def add_format_version(parser: argparse.ArgumentParser) -> None:
                         f"{' or '.join(GMSH_VERSIONS)} (default {GMSH_VERSIONS[0]})")
 
 
+def add_compress(parser: argparse.ArgumentParser) -> None:
+    """``--compress``: compressed data in a ``.vtu`` or ``.xdmf`` output."""
+    parser.add_argument("--compress", action="store_true",
+                        help="compress the data of a .vtu (zlib) or .xdmf (gzip HDF5) output: "
+                        "smaller, slower")
+
+
+def check_compress(path: str, compress: bool) -> None:
+    """``--compress`` applies to a ``.vtu`` or ``.xdmf`` output only."""
+    if compress and Path(path).suffix.lower() not in (".vtu", ".xdmf"):
+        raise ValueError(f"{path}: --compress applies to .vtu and .xdmf output only")
+
+
 def check_format_version(path: str, version: str | None) -> None:
     """``--format-version`` applies to a ``.msh`` output only."""
     if version is not None and Path(path).suffix.lower() != ".msh":

@@ -24,6 +24,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--binary", action="store_true",
                         help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply")
     _common.add_format_version(parser)
+    _common.add_compress(parser)
     parser.add_argument("--chunk-size", type=_positive, default=None, metavar="ROWS",
                         help="rows per chunk of a new store (default 262144)")
 
@@ -33,12 +34,13 @@ def run(args: argparse.Namespace) -> int:
         from_store = _is_store_name(args.input)
         to_store = _is_store_name(args.output)
         if "://" in args.output:  # a URL: only stores, and no local checks apply
-            if not to_store or args.binary:
+            if not to_store or args.binary or args.compress:
                 raise ValueError(f"{args.output}: a URL must name a Zarr store (ending in "
-                                 f"{_common.STORE}), without --binary")
+                                 f"{_common.STORE}), without --binary or --compress")
         else:
             _common.check_output(args.output, (args.input,), kinds="any", binary=args.binary)
             _common.check_format_version(args.output, args.format_version)
+            _common.check_compress(args.output, args.compress)
         if args.chunk_size is not None and not to_store:
             raise ValueError("--chunk-size applies to a .zarr output only")
         if from_store or to_store:
@@ -50,12 +52,13 @@ def run(args: argparse.Namespace) -> int:
                 write(args.output, store.to_mesh(args.input), binary=args.binary or None,
                       format_version="4.1")
             elif from_store:
-                store.to_file(args.input, args.output, binary=args.binary or None)
+                store.to_file(args.input, args.output, binary=args.binary or None,
+                              compress=args.compress)
             else:
                 store.from_file(args.input, args.output, *_chunk(args))
         else:
             write(args.output, read(args.input), binary=args.binary or None,
-                  format_version=args.format_version)
+                  format_version=args.format_version, compress=args.compress)
         if not args.quiet:
             print(f"{args.output}: written from {args.input}")
     return 0

@@ -43,6 +43,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                         help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply "
                              "(much faster for large meshes)")
     _common.add_format_version(parser)
+    _common.add_compress(parser)
     parser.add_argument("--levels", type=_common.non_negative, default=None, metavar="N",
                         help="refine every triangle N times (default 1; 7T schemes multiply "
                              "the triangles by 7 per level); not with a mark")
@@ -79,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
             return _on_dask(args)
         _common.check_output(args.output, (args.input,), binary=args.binary)
         _common.check_format_version(args.output, args.format_version)
+        _common.check_compress(args.output, args.compress)
         start = time.perf_counter()
         with _common.Progress(steps + 2, args.quiet) as progress:
             progress.step(f"reading {args.input}")
@@ -92,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError(f"{args.input}: {exc}") from None
             progress.step(f"writing {args.output}")
             write(args.output, fine, binary=args.binary or None,
-                  format_version=args.format_version)
+                  format_version=args.format_version, compress=args.compress)
         if not args.quiet:
             print(f"{args.output}: {fine.n_triangles} triangles, {fine.n_points} points "
                   f"({summary}, {time.perf_counter() - start:.2f} s)")
@@ -143,6 +145,7 @@ def _on_dask(args: argparse.Namespace) -> int:
     from ..distributed import refine_store
     from ..store import is_store
 
+    _common.check_compress(args.output, args.compress)
     if not is_store(args.input):
         raise ValueError(f"{args.input}: --dask needs a Zarr mesh store as IN (a path or URL); "
                          f"make one with 'qdrefine convert {args.input} IN.zarr'")

@@ -95,6 +95,9 @@ _XDMF = Format("XDMF", "xdmf", True, None, True, True)
 _TRIANGLE = Format("Triangle .node/.ele/.poly", None, True)
 _OBJ = Format("Wavefront OBJ", "obj", False)
 
+#: Formats :func:`write` can compress (``compress=True``).
+COMPRESSIBLE = (_VTU, _XDMF)
+
 #: Known extensions (lower case) and their formats.
 FORMATS: dict[str, Format] = {
     ".msh": _GMSH,
@@ -244,7 +247,7 @@ def _bytes_of(path: Path) -> int:
 
 
 def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
-          format_version: str | None = None) -> None:
+          format_version: str | None = None, compress: bool = False) -> None:
     """Write ``mesh`` to ``path``; the format follows the extension (see :data:`FORMATS`).
 
     Parameters
@@ -258,6 +261,9 @@ def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
         meshes (``docs/performance.md``).
     format_version : {"4.1", "2.2"}, optional
         Gmsh ``.msh`` only: the MSH version (default 4.1, what current Gmsh writes).
+    compress : bool
+        ``.vtu`` (zlib-compressed appended data) and ``.xdmf`` (gzip-compressed HDF5
+        datasets) only: smaller files, slower to write and read (``docs/performance.md``).
 
     Notes
     -----
@@ -278,6 +284,8 @@ def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
         raise ValueError(f"{path}: {fmt.name} files have no binary variant")
     if format_version is not None and fmt is not _GMSH:
         raise ValueError(f"{path}: format_version applies to Gmsh .msh files only")
+    if compress and fmt not in COMPRESSIBLE:
+        raise ValueError(f"{path}: compression applies to .vtu and .xdmf files only")
     _warn_dropped(path, fmt, mesh)
     binary = fmt.binary if binary is None else bool(binary)
     if binary and path.suffix.lower() == ".stl":
@@ -286,9 +294,11 @@ def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
         gmsh.write(path, mesh, binary=bool(binary),
                    version=format_version or GMSH_VERSIONS[0])
     elif fmt is _VTU:
-        vtu.write(path, mesh, binary=bool(binary))
+        if compress and not binary:
+            raise ValueError(f"{path}: compression applies to binary (appended) VTU only")
+        vtu.write(path, mesh, binary=bool(binary), compress=compress)
     elif fmt is _XDMF:
-        xdmf.write(path, mesh)
+        xdmf.write(path, mesh, compress=compress)
     elif fmt is _TRIANGLE:
         triangle.write(path, mesh)
     elif fmt is _OBJ:

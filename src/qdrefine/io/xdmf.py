@@ -30,8 +30,10 @@ def read(path: Path) -> RawMesh:
     return read_with_meshio(path, "xdmf", "XDMF")
 
 
-def write(path: Path, mesh, *, binary: bool = True) -> None:  # noqa: ARG001
-    """Write ``name.xdmf`` and ``name.h5`` as one set."""
+def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # noqa: ARG001
+          ) -> None:
+    """Write ``name.xdmf`` and ``name.h5`` as one set; ``compress``: the HDF5 datasets
+    gzip-compressed (with byte shuffle), which ParaView and meshio read as well."""
     import h5py
 
     h5_path = path.with_suffix(".h5")
@@ -92,5 +94,8 @@ def write(path: Path, mesh, *, binary: bool = True) -> None:  # noqa: ARG001
     with atomic_paths([h5_path, path]) as (h5_tmp, xml_tmp):
         with h5py.File(h5_tmp, "w") as h5:
             for name, a in datasets:
-                h5.create_dataset(name, data=a)
+                if compress and a.size:
+                    h5.create_dataset(name, data=a, compression="gzip", shuffle=True)
+                else:
+                    h5.create_dataset(name, data=a)
         xml_tmp.write_text("".join(xml), encoding="utf-8")

@@ -84,7 +84,7 @@ def from_file(mesh_path: PathLike, path: PathLike, chunk_size: int = DEFAULT_CHU
 
 
 def to_file(store: MeshStore | PathLike, mesh_path: PathLike, *,
-            binary: bool | None = None) -> None:
+            binary: bool | None = None, compress: bool = False) -> None:
     """Write a store to a mesh file of :func:`qdrefine.write` (format by extension).
 
     ``.msh`` (Gmsh 2.2, text unless ``binary=True``) and Triangle's ``.node/.ele/.poly`` are
@@ -96,8 +96,10 @@ def to_file(store: MeshStore | PathLike, mesh_path: PathLike, *,
     mesh_path = Path(mesh_path)
     ext = mesh_path.suffix.lower()
     if ext not in STREAMING_EXPORT:
-        write(mesh_path, to_mesh(s), binary=binary)
+        write(mesh_path, to_mesh(s), binary=binary, compress=compress)
         return
+    if compress:
+        raise ValueError(f"{mesh_path}: compression applies to .vtu and .xdmf files only")
     if binary and ext != ".msh":
         raise ValueError(f"{mesh_path}: {FORMATS[ext].name} files have no binary variant")
     if s.edge_tags is not None and any_zero(s, "edge_tags"):
