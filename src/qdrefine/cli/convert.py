@@ -48,12 +48,9 @@ def run(args: argparse.Namespace) -> int:
 
             if from_store and to_store:
                 store.create(args.output, store.to_mesh(args.input), *_chunk(args))
-            elif from_store and args.format_version == "4.1":  # streamed export is MSH 2.2
-                write(args.output, store.to_mesh(args.input), binary=args.binary or None,
-                      format_version="4.1")
             elif from_store:
                 store.to_file(args.input, args.output, binary=args.binary or None,
-                              compress=args.compress)
+                              compress=args.compress, format_version=args.format_version)
             else:
                 store.from_file(args.input, args.output, *_chunk(args))
         else:

@@ -24,7 +24,7 @@ without reading any data, :func:`to_mesh` loads (and validates) a store as a ``M
 :func:`from_file` and :func:`to_file` convert from and to every mesh file format of
 :func:`qdrefine.read` / :func:`qdrefine.write`. Streaming (memory bounded by one chunk):
 
-* writing a store to Gmsh ``.msh`` (MSH 2.2, text or binary) and to Triangle's
+* writing a store to Gmsh ``.msh`` (MSH 4.1 or 2.2, text or binary) and to Triangle's
   ``.node/.ele/.poly`` goes chunk by chunk;
 * every other conversion holds the whole mesh in memory (meshio reads and writes whole
   meshes; qdrefine validates a mesh file as a whole when reading it).

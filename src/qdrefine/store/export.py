@@ -1,6 +1,6 @@
 """Mesh files into stores and stores into mesh files: :func:`create` from a ``Mesh``,
-:func:`from_file`, and :func:`to_file`, which streams Gmsh MSH 2.2 and Triangle files
-chunk by chunk."""
+:func:`from_file`, and :func:`to_file`, which streams Gmsh MSH (4.1 or 2.2, by the Gmsh
+writer itself) and Triangle files chunk by chunk."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..io import FORMATS, atomic_path, read, write
+from ..io import FORMATS, GMSH_VERSIONS, atomic_path, read, write
+from ..io.gmsh import writing as gmsh_writing
 from ..mesh import Mesh
 from .layout import (
     ARRAYS,
@@ -84,17 +85,21 @@ def from_file(mesh_path: PathLike, path: PathLike, chunk_size: int = DEFAULT_CHU
 
 
 def to_file(store: MeshStore | PathLike, mesh_path: PathLike, *,
-            binary: bool | None = None, compress: bool = False) -> None:
+            binary: bool | None = None, compress: bool = False,
+            format_version: str | None = None) -> None:
     """Write a store to a mesh file of :func:`qdrefine.write` (format by extension).
 
-    ``.msh`` (Gmsh 2.2, text unless ``binary=True``) and Triangle's ``.node/.ele/.poly`` are
-    written chunk by chunk, with the same content as :func:`qdrefine.write` would write for
-    :func:`to_mesh` of the store; the rows are not validated again. Every other format loads
-    the mesh (validated) and calls :func:`qdrefine.write`.
+    ``.msh`` (Gmsh MSH ``format_version``, 4.1 unless ``"2.2"``, text unless ``binary=True``)
+    and Triangle's ``.node/.ele/.poly`` are written chunk by chunk, with the same content as
+    :func:`qdrefine.write` would write for :func:`to_mesh` of the store; the rows are not
+    validated again. Every other format loads the mesh (validated) and calls
+    :func:`qdrefine.write`.
     """
     s = as_store(store)
     mesh_path = Path(mesh_path)
     ext = mesh_path.suffix.lower()
+    if format_version is not None and ext != ".msh":
+        raise ValueError(f"{mesh_path}: format_version applies to Gmsh .msh files only")
     if ext not in STREAMING_EXPORT:
         write(mesh_path, to_mesh(s), binary=binary, compress=compress)
         return
@@ -106,9 +111,19 @@ def to_file(store: MeshStore | PathLike, mesh_path: PathLike, *,
         warnings.warn(f"{mesh_path}: some edges have tag 0, which reads back as untagged",
                       stacklevel=2)
     if ext == ".msh":
-        write_gmsh(s, mesh_path, bool(binary))
+        gmsh_writing.write_chunks(mesh_path, _chunks(s), binary=bool(binary),
+                                  version=format_version or GMSH_VERSIONS[0])
     else:
         write_triangle(s, mesh_path)
+
+
+def _chunks(s: MeshStore) -> gmsh_writing.Chunks:
+    """The store as :class:`qdrefine.io.gmsh.writing.Chunks` (its own chunks)."""
+    def of(name: str):
+        return None if getattr(s, name) is None else (lambda: rows(s, name))
+
+    return gmsh_writing.Chunks(s.n_points, s.n_triangles, s.n_edges, of("points"),
+                               of("triangles"), of("cell_tags"), of("edges"), of("edge_tags"))
 
 
 def any_zero(s: MeshStore, name: str) -> bool:
@@ -131,58 +146,6 @@ def cell_tags_between(s: MeshStore, start: int, stop: int) -> NDArray:
     if s.cell_tags is None:
         return np.zeros(stop - start, dtype=np.int64)
     return rows_between(s, "cell_tags", start, stop)
-
-
-def write_gmsh(s: MeshStore, path: Path, binary: bool) -> None:
-    with atomic_path(path) as tmp, tmp.open("wb") as f:
-        f.write(f"$MeshFormat\n2.2 {int(binary)} 8\n".encode())
-        if binary:
-            np.array([1], dtype=np.int32).tofile(f)
-            f.write(b"\n")
-        f.write(f"$EndMeshFormat\n$Nodes\n{s.n_points}\n".encode())
-        for start, p in rows(s, "points"):
-            ids = np.arange(start + 1, start + 1 + len(p))
-            gmsh_nodes(f, ids, p, binary)
-        f.write(b"\n" if binary else b"")
-        f.write(f"$EndNodes\n$Elements\n{s.n_edges + s.n_triangles}\n".encode())
-        first = 1
-        if s.edges is not None:
-            for start, e in rows(s, "edges"):
-                tag = rows_between(s, "edge_tags", start, start + len(e))
-                gmsh_elements(f, 1, first + start, tag, e, binary)
-            first += s.n_edges
-        for start, t in rows(s, "triangles"):
-            tag = cell_tags_between(s, start, start + len(t))
-            gmsh_elements(f, 2, first + start, tag, t, binary)
-        f.write(b"\n" if binary else b"")
-        f.write(b"$EndElements\n")
-
-
-def gmsh_nodes(f, ids: NDArray, p: NDArray, binary: bool) -> None:
-    if binary:
-        rows = np.empty(len(p), dtype=[("id", np.int32), ("x", np.float64, (3,))])
-        rows["id"] = ids
-        rows["x"][:, :2] = p
-        rows["x"][:, 2] = 0.0
-        rows.tofile(f)
-    else:
-        np.savetxt(f, np.column_stack([ids, p]), fmt="%d %.17g %.17g 0")
-
-
-def gmsh_elements(f, kind: int, first: int, tag: NDArray, cells: NDArray,
-                   binary: bool) -> None:
-    """Gmsh 2.2 elements (1: line, 2: triangle) with physical and geometrical tags, as
-    :func:`qdrefine.write` writes them (geometrical = physical, 0 replaced by 1)."""
-    ids = np.arange(first, first + len(cells), dtype=np.int64)
-    geom = np.where(tag == 0, 1, tag)
-    if binary:
-        np.array([kind, len(cells), 2], dtype=np.int32).tofile(f)
-        rows = np.column_stack([ids, tag, geom, cells.astype(np.int64) + 1])
-        rows.astype(np.int32).tofile(f)
-    else:
-        rows = np.column_stack([ids, np.full(len(cells), kind), np.full(len(cells), 2),
-                                tag, geom, cells.astype(np.int64) + 1])
-        np.savetxt(f, rows, fmt="%d")
 
 
 def write_triangle(s: MeshStore, path: Path) -> None:

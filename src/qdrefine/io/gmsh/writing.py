@@ -4,6 +4,7 @@ point and cell data as ``$NodeData``/``$ElementData`` views."""
 from __future__ import annotations
 
 import json
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -13,59 +14,165 @@ from .._core import atomic_path, mesh_data
 from .._text import format_floats, int_lines
 from .common import EXACT_INT, VERSIONS
 
-__all__ = ["write"]
+__all__ = ["write", "write_chunks", "Chunks"]
+
+
+class Chunks:
+    """A mesh given chunk by chunk (e.g. a Zarr store), for :func:`write_chunks`.
+
+    ``points()``, ``triangles()`` and ``edges()`` each return a new iterator of
+    ``(first row, rows)`` (``(k, 2)`` float64 points; ``(k, 3)`` / ``(k, 2)`` 0-based
+    cells), ``cell_tags()`` and ``edge_tags()`` of ``(first row, tags)`` (``None``: no such
+    array). Every iterator may be asked for again (MSH 4.1 groups elements by tag, one pass
+    per tag value).
+    """
+
+    def __init__(self, n_points: int, n_triangles: int, n_edges: int, points, triangles,
+                 cell_tags=None, edges=None, edge_tags=None) -> None:
+        self.n_points, self.n_triangles, self.n_edges = n_points, n_triangles, n_edges
+        self.points, self.triangles, self.edges = points, triangles, edges
+        self.cell_tags, self.edge_tags = cell_tags, edge_tags
+
+    def cells(self, kind: str) -> Iterator[tuple[int, NDArray, NDArray]]:
+        """``(first row, cells, tags)`` of ``"triangles"`` or ``"edges"`` (tags 0 where
+        there are none)."""
+        cells = self.triangles() if kind == "triangles" else self.edges()
+        tags = (self.cell_tags if kind == "triangles" else self.edge_tags)
+        tags = tags() if tags is not None else None
+        for start, rows in cells:
+            if tags is None:
+                yield start, rows, np.zeros(len(rows), np.int64)
+            else:
+                at, values = next(tags)
+                if at != start or len(values) != len(rows):
+                    raise ValueError(f"the tags of {kind} are chunked unlike the {kind}")
+                yield start, rows, np.asarray(values, np.int64)
+
+    def groups(self, kind: str) -> list[tuple[int, int, Callable[[], Iterator]]]:
+        """``(tag value, count, blocks)`` per distinct tag in increasing order; ``blocks()``
+        yields ``(rows, cells)`` of that tag in row order, chunk by chunk."""
+        count = self.n_triangles if kind == "triangles" else self.n_edges
+        if not count:
+            return []
+        if (self.cell_tags if kind == "triangles" else self.edge_tags) is None:
+            return [(0, count, lambda: ((start + np.arange(len(c)), c)
+                                        for start, c, _ in self.cells(kind)))]
+        totals: dict[int, int] = {}
+        for _, _, tags in self.cells(kind):
+            values, counts = np.unique(tags, return_counts=True)
+            for v, c in zip(values.tolist(), counts.tolist(), strict=True):
+                totals[v] = totals.get(v, 0) + c
+
+        def blocks(value: int) -> Iterator[tuple[NDArray, NDArray]]:
+            for start, c, tags in self.cells(kind):
+                sel = np.flatnonzero(tags == value)
+                if len(sel):
+                    yield start + sel, c[sel]
+
+        return [(v, totals[v], (lambda v=v: blocks(v))) for v in sorted(totals)]
+
+
+class _InMemory(Chunks):
+    """A :class:`~qdrefine.Mesh` as one chunk, grouped by one sort of the tags."""
+
+    def __init__(self, mesh) -> None:
+        k = 0 if mesh.edges is None else len(mesh.edges)
+        super().__init__(
+            mesh.n_points, mesh.n_triangles, k,
+            lambda: iter([(0, np.asarray(mesh.points))]),
+            lambda: iter([(0, np.asarray(mesh.triangles))]),
+            None if mesh.cell_tags is None else lambda: iter([(0, mesh.cell_tags)]),
+            (lambda: iter([(0, np.asarray(mesh.edges))])) if k else None,
+            (lambda: iter([(0, mesh.edge_tags)])) if k else None)
+        self.mesh = mesh
+
+    def groups(self, kind: str) -> list[tuple[int, int, Callable[[], Iterator]]]:
+        if kind == "triangles":
+            tags, cells, n = self.mesh.cell_tags, self.mesh.triangles, self.n_triangles
+        else:
+            tags, cells, n = self.mesh.edge_tags, self.mesh.edges, self.n_edges
+        if not n:
+            return []
+        cells = np.asarray(cells)
+        if tags is None:
+            return [(0, n, lambda: iter([(np.arange(n, dtype=np.int64), cells)]))]
+        order = np.argsort(tags, kind="stable")
+        values, starts = np.unique(np.asarray(tags)[order], return_index=True)
+        ends = np.append(starts[1:], n)
+        out = []
+        for v, s, e in zip(values.tolist(), starts.tolist(), ends.tolist(), strict=True):
+            rows = order[s:e]
+            whole = e - s == n  # one tag: all rows in order, no gather
+            out.append((v, e - s, (lambda r=rows, w=whole: iter(
+                [(np.arange(n, dtype=np.int64), cells) if w else (r, cells[r])]))))
+        return out
 
 
 def write(path: Path, mesh, *, binary: bool = False, version: str = "4.1") -> None:
     """Write ``mesh`` as Gmsh MSH ``version`` (``"4.1"`` or ``"2.2"``), text or binary."""
+    _check_version(path, version)
+    point_data, cell_data = mesh_data(mesh)
+    sections = _data_sections(path, mesh, point_data, cell_data, binary)
+    _write(path, _InMemory(mesh), binary, version, mesh.physical_names, sections)
+
+
+def write_chunks(path: Path, source: Chunks, *, binary: bool = False,
+                 version: str = "4.1") -> None:
+    """Write a mesh given chunk by chunk (:class:`Chunks`) as Gmsh MSH ``version``: the same
+    bytes as :func:`write` of the whole mesh (without data or names), in memory of one
+    chunk at a time."""
+    _check_version(path, version)
+    _write(path, source, binary, version, {}, [])
+
+
+def _check_version(path: Path, version: str) -> None:
     if version not in VERSIONS:
         raise ValueError(f"{path}: Gmsh MSH version must be one of {', '.join(VERSIONS)}, got "
                          f"{version!r}")
-    point_data, cell_data = mesh_data(mesh)
-    sections = _data_sections(path, mesh, point_data, cell_data, binary)
+
+
+def _write(path: Path, source: Chunks, binary: bool, version: str, physical_names: dict,
+           sections: list[bytes]) -> None:
     with atomic_path(path) as tmp, open(tmp, "wb") as out:
         out.write(f"$MeshFormat\n{version} {int(binary)} 8\n".encode())
         if binary:
             out.write(np.array([1], np.int32).tobytes() + b"\n")
         out.write(b"$EndMeshFormat\n")
-        if mesh.physical_names:
-            names = sorted(mesh.physical_names.items())
+        if physical_names:
+            names = sorted(physical_names.items())
             out.write(f"$PhysicalNames\n{len(names)}\n".encode())
             for (dim, tag), name in names:
                 out.write(f'{dim} {tag} "{name}"\n'.encode())
             out.write(b"$EndPhysicalNames\n")
         if version == "4.1":
-            _write41(out, mesh, binary)
+            _write41(out, source, binary)
         else:
-            _write22(out, mesh, binary)
+            _write22(out, source, binary)
         for part in sections:
             out.write(part)
 
 
-def _groups(tags: NDArray | None, n: int) -> list[tuple[int, NDArray[np.int64]]]:
-    """``(tag value, rows)`` for each distinct tag, in increasing tag order (rows in order)."""
-    if tags is None:
-        return [(0, np.arange(n, dtype=np.int64))] if n else []
-    order = np.argsort(tags, kind="stable")
-    values, starts = np.unique(tags[order], return_index=True)
-    ends = np.append(starts[1:], n)
-    return [(int(v), order[s:e]) for v, s, e in zip(values, starts, ends, strict=True)]
+def _bounding_box(source: Chunks) -> list[float]:
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for _, p in source.points():
+        if len(p):
+            lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
+    if not source.n_points:
+        return [0.0] * 6
+    return [float(lo[0]), float(lo[1]), 0.0, float(hi[0]), float(hi[1]), 0.0]
 
 
-def _write41(out, mesh, binary: bool) -> None:
-    n, m = mesh.n_points, mesh.n_triangles
-    k = 0 if mesh.edges is None else len(mesh.edges)
-    surfaces = _groups(mesh.cell_tags, m)
-    curves = _groups(mesh.edge_tags, k) if k else []
-    p = np.asarray(mesh.points)
-    box = [p[:, 0].min(), p[:, 1].min(), 0.0, p[:, 0].max(), p[:, 1].max(), 0.0] if n \
-        else [0.0] * 6
+def _write41(out, source: Chunks, binary: bool) -> None:
+    n, m, k = source.n_points, source.n_triangles, source.n_edges
+    surfaces = source.groups("triangles")
+    curves = source.groups("edges")
+    box = _bounding_box(source)
     # entities: one curve per edge tag, one surface per cell tag (physical tag = the tag)
     out.write(b"$Entities\n")
     if binary:
         out.write(np.array([0, len(curves), len(surfaces), 0], np.uint64).tobytes())
         for groups in (curves, surfaces):
-            for i, (tag, _) in enumerate(groups):
+            for i, (tag, _, _) in enumerate(groups):
                 phys = [tag]
                 out.write(np.array([i + 1], np.int32).tobytes() + np.array(box).tobytes()
                           + np.array([len(phys)], np.uint64).tobytes()
@@ -76,91 +183,93 @@ def _write41(out, mesh, binary: bool) -> None:
         out.write(f"0 {len(curves)} {len(surfaces)} 0\n".encode())
         bbox = " ".join(repr(float(x)) for x in box)
         for groups in (curves, surfaces):
-            for i, (tag, _) in enumerate(groups):
-                phys = f"1 {tag}"
-                out.write(f"{i + 1} {bbox} {phys} 0\n".encode())
+            for i, (tag, _, _) in enumerate(groups):
+                out.write(f"{i + 1} {bbox} 1 {tag} 0\n".encode())
     out.write(b"$EndEntities\n$Nodes\n")
-    xyz = np.zeros((n, 3))
-    xyz[:, :2] = p
     if binary:
         out.write(np.array([1, n, 1, n], np.uint64).tobytes())
         out.write(np.array([2, 1, 0], np.int32).tobytes() + np.array([n], np.uint64).tobytes())
-        out.write(np.arange(1, n + 1, dtype=np.uint64).tobytes())
-        out.write(xyz.tobytes())
+        for start, p in source.points():
+            out.write(np.arange(start + 1, start + len(p) + 1, dtype=np.uint64).tobytes())
+        for _, p in source.points():
+            xyz = np.zeros((len(p), 3))
+            xyz[:, :2] = p
+            out.write(xyz.tobytes())
         out.write(b"\n")
     else:
         out.write(f"1 {n} 1 {n}\n2 1 0 {n}\n".encode())
-        for piece in int_lines(np.arange(1, n + 1)):
-            out.write(piece)
-        for piece in format_floats(p, " 0"):
-            out.write(piece)
+        for start, p in source.points():
+            for piece in int_lines(np.arange(start + 1, start + len(p) + 1)):
+                out.write(piece)
+        for _, p in source.points():
+            for piece in format_floats(p, " 0"):
+                out.write(piece)
     out.write(b"$EndNodes\n$Elements\n")
-    blocks = [(2, i + 1, 2, rows, 0, np.asarray(mesh.triangles), len(surfaces) == 1)
-              for i, (_, rows) in enumerate(surfaces)]
-    blocks += [(1, i + 1, 1, rows, m, np.asarray(mesh.edges), len(curves) == 1)
-               for i, (_, rows) in enumerate(curves)]
+    blocks = [(2, i + 1, 2, count, 0, rows) for i, (_, count, rows) in enumerate(surfaces)]
+    blocks += [(1, i + 1, 1, count, m, rows) for i, (_, count, rows) in enumerate(curves)]
     total = m + k
     if binary:
         out.write(np.array([len(blocks), total, 1, total], np.uint64).tobytes())
     else:
         out.write(f"{len(blocks)} {total} 1 {total}\n".encode())
-    for dim, ent, typ, rows, first, cells, everything in blocks:
-        block = _element_rows(rows, first, cells, everything)
+    for dim, ent, typ, count, first, pieces in blocks:
         if binary:
             out.write(np.array([dim, ent, typ], np.int32).tobytes()
-                      + np.array([len(block)], np.uint64).tobytes())
-            out.write(memoryview(block.view(np.uint64).reshape(-1)))
+                      + np.array([count], np.uint64).tobytes())
         else:
-            out.write(f"{dim} {ent} {typ} {len(block)}\n".encode())
-            for piece in int_lines(block):
-                out.write(piece)
+            out.write(f"{dim} {ent} {typ} {count}\n".encode())
+        for rows, cells in pieces():
+            block = _element_rows(rows, first, cells)
+            if binary:
+                out.write(memoryview(block.view(np.uint64).reshape(-1)))
+            else:
+                for piece in int_lines(block):
+                    out.write(piece)
     out.write(b"\n$EndElements\n" if binary else b"$EndElements\n")
 
 
-def _element_rows(rows: NDArray[np.int64], first: int, cells: NDArray, everything: bool
-                  ) -> NDArray[np.int64]:
-    """``(k, 1 + nodes) int64``: element tag ``first + row + 1`` and 1-based nodes of the
-    ``cells`` at ``rows`` (all of them, without a gather, when ``everything``)."""
+def _element_rows(rows: NDArray[np.int64], first: int, cells: NDArray) -> NDArray[np.int64]:
+    """``(k, 1 + nodes) int64``: element tag ``first + row + 1`` and the 1-based nodes."""
     block = np.empty((len(rows), 1 + cells.shape[1]), np.int64)
     block[:, 0] = rows
     block[:, 0] += first + 1
-    block[:, 1:] = cells if everything else cells[rows]
+    block[:, 1:] = cells
     block[:, 1:] += 1
     return block
 
 
-def _write22(out, mesh, binary: bool) -> None:
-    n, m = mesh.n_points, mesh.n_triangles
-    k = 0 if mesh.edges is None else len(mesh.edges)
-    p = np.asarray(mesh.points)
+def _write22(out, source: Chunks, binary: bool) -> None:
+    n, m, k = source.n_points, source.n_triangles, source.n_edges
     out.write(f"$Nodes\n{n}\n".encode())
-    if binary:
-        rec = np.empty(n, dtype=[("tag", np.int32), ("xyz", np.float64, 3)])
-        rec["tag"] = np.arange(1, n + 1)
-        rec["xyz"][:, :2] = p
-        rec["xyz"][:, 2] = 0
-        out.write(rec.tobytes() + b"\n")
-    else:
-        for piece in format_floats(np.column_stack([np.arange(1, n + 1), p]), " 0", "%d"):
-            out.write(piece)
-    out.write(b"$EndNodes\n")
-    tri_tags = mesh.cell_tags if mesh.cell_tags is not None else np.zeros(m, np.int64)
-    parts = [(2, np.arange(1, m + 1), tri_tags, np.asarray(mesh.triangles))]
-    if k:
-        parts.append((1, np.arange(m + 1, m + k + 1), mesh.edge_tags, np.asarray(mesh.edges)))
-    out.write(f"$Elements\n{m + k}\n".encode())
-    for typ, ids, tags, nodes in parts:
-        tags = np.asarray(tags, np.int64)
-        geom = np.where(tags == 0, 1, tags)  # 0 is not a valid elementary entity
+    for start, p in source.points():
+        ids = np.arange(start + 1, start + len(p) + 1)
         if binary:
-            out.write(np.array([typ, len(ids), 2], np.int32).tobytes())
-            rows = np.column_stack([ids, tags, geom, nodes + 1])
-            out.write(rows.astype(np.int32).tobytes())
+            rec = np.empty(len(p), dtype=[("tag", np.int32), ("xyz", np.float64, 3)])
+            rec["tag"] = ids
+            rec["xyz"][:, :2] = p
+            rec["xyz"][:, 2] = 0
+            out.write(rec.tobytes())
         else:
-            rows = np.column_stack([ids, np.full(len(ids), typ), np.full(len(ids), 2), tags,
-                                    geom, nodes + 1])
-            for piece in int_lines(rows):
+            for piece in format_floats(np.column_stack([ids, p]), " 0", "%d"):
                 out.write(piece)
+    out.write(b"\n$EndNodes\n" if binary else b"$EndNodes\n")
+    out.write(f"$Elements\n{m + k}\n".encode())
+    for typ, kind, first in ((2, "triangles", 0), (1, "edges", m)):
+        if not (m if kind == "triangles" else k):
+            continue
+        if binary:  # one header for all elements of this type
+            out.write(np.array([typ, m if kind == "triangles" else k, 2], np.int32).tobytes())
+        for start, nodes, tags in source.cells(kind):
+            ids = np.arange(first + start + 1, first + start + len(nodes) + 1)
+            geom = np.where(tags == 0, 1, tags)  # 0 is not a valid elementary entity
+            if binary:
+                rows = np.column_stack([ids, tags, geom, nodes + 1])
+                out.write(rows.astype(np.int32).tobytes())
+            else:
+                rows = np.column_stack([ids, np.full(len(ids), typ), np.full(len(ids), 2),
+                                        tags, geom, nodes + 1])
+                for piece in int_lines(rows):
+                    out.write(piece)
     out.write(b"\n$EndElements\n" if binary else b"$EndElements\n")
 
 
