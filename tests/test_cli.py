@@ -100,6 +100,9 @@ def test_quality_json_and_histogram(tmp_path, run):
     assert d["min_angle"]["min"] == pytest.approx(quality.min_angles(mesh).min())
     assert sum(d["min_angle_histogram"]["counts"]) == 52
     assert png.read_bytes()[:4] == b"\x89PNG"
+    assert result.stderr == f"{png}: histogram of 52 minimum angles written\n"  # not in JSON
+    text = run("quality", DATA / "two_regions_22.msh", "--histogram", png).stdout
+    assert text.endswith(f"{png}: histogram of 52 minimum angles written\n")
 
 
 def test_plot_writes_a_png(tmp_path, run):
@@ -122,6 +125,7 @@ def test_compare_json_and_plot(tmp_path, run):
     red = [r["similarity_classes"] for r in rows[3:]]
     assert red[0] == red[1] == red[2]  # red refinement makes no new shapes
     assert png.read_bytes()[:4] == b"\x89PNG"
+    assert result.stderr.endswith(f"{png}: 2 schemes over 2 levels written\n")
 
 
 # error paths ------------------------------------------------------------------------------

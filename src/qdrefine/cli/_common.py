@@ -43,6 +43,14 @@ def add_format_version(parser: argparse.ArgumentParser) -> None:
                         f"{' or '.join(GMSH_VERSIONS)} (default {GMSH_VERSIONS[0]})")
 
 
+def note_written(path: str | Path, what: str, args: argparse.Namespace) -> None:
+    """Say that ``path`` was written (``"PATH: WHAT written"``): on stdout after a text
+    report, on stderr when stdout is JSON; nothing with ``--quiet``."""
+    if not getattr(args, "quiet", False):
+        print(f"{path}: {what} written", file=sys.stderr if getattr(args, "json", False)
+              else sys.stdout)
+
+
 def add_compress(parser: argparse.ArgumentParser) -> None:
     """``--compress``: compressed data in a ``.vtu`` or ``.xdmf`` output."""
     parser.add_argument("--compress", action="store_true",

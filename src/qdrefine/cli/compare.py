@@ -62,4 +62,7 @@ def run(args: argparse.Namespace) -> int:
         elif not args.quiet:
             print(report.format_compare(rows))
             print(f"similarity classes: two smallest angles equal to {args.tolerance:g} degrees")
+        if args.plot:
+            levels = f"{args.levels} level{'s' if args.levels != 1 else ''}"
+            _common.note_written(args.plot, f"{len(schemes)} schemes over {levels}", args)
     return 0

@@ -38,4 +38,7 @@ def run(args: argparse.Namespace) -> int:
             ax = min_angle_histogram(mesh, title=f"Minimum angles: {args.input}")
             _common.save_figure(ax.figure, args.histogram)
         print(_common.dumps(d) if args.json else report.format_quality(d))
+        if args.histogram:
+            _common.note_written(args.histogram, f"histogram of {mesh.n_triangles} minimum "
+                                 "angles", args)
     return 0
