@@ -50,10 +50,18 @@ def canonical_edges(labels: NDArray[np.int8], tri_edges: NDArray[np.int64]
     ``tri_edges[:, i]`` is the edge ``(v_i, v_{i+1})``, so the edge between local vertices
     ``a`` and ``b`` is column ``a`` when ``b == a + 1 (mod 3)`` and column ``b`` otherwise.
     """
-    a = labels.astype(np.int64)
-    b = np.roll(a, -1, axis=1)
-    col = np.where(b == (a + 1) % 3, a, b)
-    return np.take_along_axis(tri_edges, col, axis=1)
+    out = np.empty((labels.shape[0], 3), dtype=np.int64)
+    with threads_for(labels.shape[0]):
+        _canonical_edges(labels, tri_edges, out)
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _canonical_edges(labels, tri_edges, out):
+    for t in prange(labels.shape[0]):
+        for i in range(3):
+            a, b = labels[t, i], labels[t, (i + 1) % 3]
+            out[t, i] = tri_edges[t, a if b == (a + 1) % 3 else b]
 
 
 def split_codes(split: NDArray[np.bool_]) -> NDArray[np.int64]:

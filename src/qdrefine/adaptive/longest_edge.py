@@ -5,10 +5,11 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import NDArray
 
-from .labels import split_codes
+from ..jit import threads_for
+from .labels import MN, OM
 
 
 def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
@@ -51,33 +52,87 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
     split = np.zeros(n_edges, dtype=bool) if presplit is None else presplit.copy()
     split[cedges[marked].ravel()] = True
     around = edge_triangles(cedges, n_edges)
-    rounds = _propagate(split, cedges, np.flatnonzero(split[cedges].any(axis=1)), around)
+    rounds = _propagate(split, cedges, np.flatnonzero(_touching(split, cedges)), around)
     if upgrade is None:
         return split, rounds
-    reached = split[cedges].any(axis=1)  # the closure of the marks
-    incident = np.bincount(cedges.ravel(), minlength=n_edges)
+    reached = _touching(split, cedges)  # the closure of the marks
     while True:
-        s = split[cedges]
-        active = s.any(axis=1)
-        cand = np.flatnonzero(active & ~s[:, 1])
+        cand, codes = _candidates(split, cedges)
         if not cand.size:
             break
-        up = cand[upgrade(cand, split_codes(s[cand]))]
+        up = cand[upgrade(cand, codes)]
         # an upgrade outside the closure of the marks brings no new triangle in: the
         # triangles across its NO edge are refined already (or there are none)
-        touched = np.bincount(cedges[active].ravel(), minlength=n_edges)
-        no = cedges[up, 1]
-        no = no[reached[up] | (touched[no] == incident[no])]
+        no = _allowed(up, cedges, reached, split, *around)
         no = np.unique(no[~split[no]])
         if not no.size:
             break
         split[no] = True
-        rounds += 1 + _propagate(split, cedges, np.flatnonzero(split[cedges[:, 1:]].any(axis=1)
-                                                               & ~split[cedges[:, 0]]), around)
+        # the closure held before: only triangles around the new edges can break it
+        start, tris = around
+        new = np.unique(np.concatenate([tris[start[e]:start[e + 1]] for e in no]))
+        rounds += 1 + _propagate(split, cedges, new, around)
         layers -= 1
         if layers > 0:
-            reached = split[cedges].any(axis=1)
+            reached = _touching(split, cedges)
     return split, rounds
+
+
+@njit(parallel=True, cache=True)
+def _touching_into(split, cedges, out):
+    for t in prange(cedges.shape[0]):
+        out[t] = split[cedges[t, 0]] or split[cedges[t, 1]] or split[cedges[t, 2]]
+
+
+def _touching(split: NDArray[np.bool_], cedges: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """``(M,) bool``: triangles with a split edge."""
+    out = np.empty(cedges.shape[0], dtype=np.bool_)
+    with threads_for(cedges.shape[0]):
+        _touching_into(split, cedges, out)
+    return out
+
+
+@njit(cache=True)
+def _candidates(split, cedges):
+    """Triangles with a split edge and ``NO`` unsplit (with the closure: ``MN`` split), in
+    order, and their split codes (bits ``MN=1, NO=2, OM=4``)."""
+    n = 0
+    for t in range(cedges.shape[0]):
+        if not split[cedges[t, 1]] and (split[cedges[t, 0]] or split[cedges[t, 2]]):
+            n += 1
+    cand = np.empty(n, dtype=np.int64)
+    codes = np.empty(n, dtype=np.int64)
+    j = 0
+    for t in range(cedges.shape[0]):
+        if not split[cedges[t, 1]] and (split[cedges[t, 0]] or split[cedges[t, 2]]):
+            cand[j] = t
+            codes[j] = (MN if split[cedges[t, 0]] else 0) + (OM if split[cedges[t, 2]] else 0)
+            j += 1
+    return cand, codes
+
+
+@njit(cache=True)
+def _allowed(up, cedges, reached, split, start, tris):
+    """The ``NO`` edges of the upgraded triangles ``up`` that may be split: the triangle
+    is in the closure of the marks, or every triangle around its ``NO`` edge has a split
+    edge already."""
+    out = np.empty(up.shape[0], dtype=np.int64)
+    n = 0
+    for i in range(up.shape[0]):
+        t = up[i]
+        e = cedges[t, 1]
+        ok = reached[t]
+        if not ok:
+            ok = True
+            for k in range(start[e], start[e + 1]):
+                u = tris[k]
+                if not (split[cedges[u, 0]] or split[cedges[u, 1]] or split[cedges[u, 2]]):
+                    ok = False
+                    break
+        if ok:
+            out[n] = e
+            n += 1
+    return out[:n]
 
 
 def _propagate(split: NDArray[np.bool_], cedges: NDArray[np.int64],

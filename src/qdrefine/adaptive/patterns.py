@@ -153,7 +153,22 @@ def stencil_coordinates(corners: NDArray[np.float64], k: int) -> NDArray[np.floa
     weights = pattern_stencil(k).weights
     den = np.lcm.reduce([c.denominator for row in weights for c in row])
     w = np.array([[int(c * den) for c in row] for row in weights], dtype=np.float64)
-    return np.einsum("sv,gvd->gsd", w, corners) / float(den)
+    corners = np.ascontiguousarray(corners, dtype=np.float64)
+    out = np.empty((corners.shape[0], w.shape[0], 2))
+    with threads_for(corners.shape[0]):
+        _weighted(w, corners, float(den), out)
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _weighted(w, corners, den, out):
+    # ((w_M M + w_N N) + w_O O) / d, multiplications and additions rounded one by one (no
+    # fused multiply-add), as the edge points are computed
+    for g in prange(corners.shape[0]):
+        for s in range(w.shape[0]):
+            for d in range(2):
+                out[g, s, d] = (w[s, 0] * corners[g, 0, d] + w[s, 1] * corners[g, 1, d]
+                                + w[s, 2] * corners[g, 2, d]) / den
 
 
 def min_angles(tri: NDArray[np.float64]) -> NDArray[np.float64]:
