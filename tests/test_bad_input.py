@@ -588,3 +588,35 @@ def test_reading_memory_is_checked_before_the_file_is_read(tmp_path, monkeypatch
     assert not (tmp_path / "out.vtu").exists()
     monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "1GiB")
     assert qdrefine.read(path).n_triangles == examples.square(30).n_triangles
+
+
+def test_a_mixed_triangle_set_is_refused(tmp_path, run):
+    """Issue 17: Triangle's three files from two different writes (an interrupted or
+    concurrent write between the renames) are refused with one line; a set written by
+    another tool (no stamp), or edited by hand, is read as it is."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    qdrefine.write(a / "m.node", examples.square(2))
+    qdrefine.write(b / "m.node", examples.square(3))
+    stamps = {p.read_text().splitlines()[-1] for p in a.glob("m.*")}
+    assert len(stamps) == 1 and stamps.pop().startswith("# qdrefine set ")
+    (a / "m.ele").write_bytes((b / "m.ele").read_bytes())  # the new .ele, the old .node
+    before = _snapshot(tmp_path)
+    with pytest.raises(ValueError, match=r"m.ele: written by another run than m.node .*"
+                                         r"a mixed set"):
+        qdrefine.read(a / "m.ele")
+    result = run("refine", a / "m.ele", tmp_path / "out.vtu")
+    assert result.returncode == 1 and result.stderr.count("\n") == 1
+    assert "a mixed set" in result.stderr and not (tmp_path / "out.vtu").exists()
+    assert _snapshot(tmp_path) == before
+    # without stamps (another tool) the same files are read, and fail on their content
+    for p in a.glob("m.*"):
+        p.write_text("\n".join(p.read_text().splitlines()[:-1]) + "\n")
+    with pytest.raises(ValueError, match="is not in|outside|vertex"):
+        qdrefine.read(a / "m.ele")
+    # a hand edit of one file keeps the stamps equal: read as it is
+    qdrefine.write(b / "m.node", examples.square(3))
+    text = (b / "m.node").read_text().replace("# written by qdrefine", "# edited")
+    (b / "m.node").write_text(text)
+    assert qdrefine.read(b / "m.ele").n_triangles == examples.square(3).n_triangles

@@ -3,10 +3,16 @@
 The first regional attribute of ``.ele`` is the cell tag; the segments of ``.poly`` with a
 nonzero boundary marker are the tagged edges. The three files are written as one set: each
 goes to a temporary file, and they replace their targets only once all three are written.
+Each ends with the comment ``# qdrefine set DIGEST``, a hash of the three files' content:
+a reader that finds two different stamps in one set refuses it (a mixed set, left by an
+interrupted or concurrent write between the three renames). Files of other tools carry no
+stamp and are read as they are.
 """
 
 from __future__ import annotations
 
+import hashlib
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +20,61 @@ from numpy.typing import NDArray
 
 from ._core import RawMesh, atomic_paths, read_bytes
 
-__all__ = ["read", "write", "base_of"]
+__all__ = ["read", "write", "base_of", "Stamping", "SET_STAMP"]
+
+#: The comment that ends every file of a set written by qdrefine (then the digest).
+SET_STAMP = "# qdrefine set "
+
+
+class Stamping:
+    """Text files written through :meth:`wrap` feed one hash; :meth:`finish` appends the
+    same ``# qdrefine set DIGEST`` line to each of them (the digest of everything written)."""
+
+    def __init__(self) -> None:
+        self.hash = hashlib.blake2b(digest_size=8)
+
+    def wrap(self, f):
+        return _Hashed(f, self.hash)
+
+    def finish(self, paths: Iterable[Path]) -> None:
+        line = f"{SET_STAMP}{self.hash.hexdigest()}\n"
+        for path in paths:
+            with open(path, "a") as f:
+                f.write(line)
+
+
+class _Hashed:
+    def __init__(self, f, h) -> None:
+        self.f, self.h = f, h
+
+    def write(self, text: str) -> int:
+        self.h.update(text.encode())
+        return self.f.write(text)
+
+
+def _stamp_of(path: Path) -> str | None:
+    """The set stamp at the end of ``path`` (None: none, e.g. a file of another tool)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(max(0, path.stat().st_size - 64))
+            tail = f.read().decode("utf-8", "replace")
+    except OSError:
+        return None
+    at = tail.rfind(SET_STAMP)
+    if at < 0:
+        return None
+    return tail[at + len(SET_STAMP):].split()[0] if tail[at + len(SET_STAMP):].split() else None
+
+
+def _check_set(paths: list[Path]) -> None:
+    """Refuse a set whose stamped files come from different writes."""
+    stamps = [(p, _stamp_of(p)) for p in paths if p.is_file()]
+    stamps = [(p, s) for p, s in stamps if s is not None]
+    if len({s for _, s in stamps}) > 1:
+        (a, sa), (b, sb) = stamps[0], next((p, s) for p, s in stamps if s != stamps[0][1])
+        raise ValueError(f"{b}: written by another run than {a.name} (qdrefine set {sb}, "
+                         f"{a.name}: {sa}): a mixed set, left by an interrupted or concurrent "
+                         "write; write the mesh again")
 
 
 class _Lines:
@@ -93,6 +153,7 @@ def read(path: Path) -> RawMesh:
     """The content of ``name.node`` and ``name.ele`` (and ``name.poly`` if it exists)."""
     base = base_of(path)
     node_path, ele_path, poly_path = (base.with_suffix(s) for s in (".node", ".ele", ".poly"))
+    _check_set([node_path, ele_path, poly_path])
     points, first, node_lines = _read_node(_Lines(node_path))
     raw = RawMesh(ele_path, points, np.empty((0, 3), dtype=np.int64), base=first)
     raw.lines["point"] = (node_path, node_lines)
@@ -186,11 +247,14 @@ def write(path: Path, mesh, *, binary: bool = False) -> None:  # noqa: ARG001
     base = base_of(path)
     n, m = mesh.n_points, mesh.n_triangles
     targets = [base.with_suffix(s) for s in (".node", ".ele", ".poly")]
+    stamping = Stamping()
     with atomic_paths(targets) as (node, ele, poly):
         with open(node, "w") as f:
+            f = stamping.wrap(f)
             f.write(f"# written by qdrefine\n{n} 2 0 0\n")
             np.savetxt(f, np.column_stack([np.arange(n), mesh.points]), fmt="%d %.17g %.17g")
         with open(ele, "w") as f:
+            f = stamping.wrap(f)
             t = np.asarray(mesh.triangles, dtype=np.int64)
             if mesh.cell_tags is None:
                 f.write(f"{m} 3 0\n")
@@ -199,6 +263,7 @@ def write(path: Path, mesh, *, binary: bool = False) -> None:  # noqa: ARG001
                 f.write(f"{m} 3 1\n")
                 np.savetxt(f, np.column_stack([np.arange(m), t, mesh.cell_tags]), fmt="%d")
         with open(poly, "w") as f:
+            f = stamping.wrap(f)
             f.write("# vertices are in the .node file\n0 2 0 0\n")
             k = 0 if mesh.edges is None else len(mesh.edges)
             f.write(f"{k} 1\n")
@@ -206,3 +271,4 @@ def write(path: Path, mesh, *, binary: bool = False) -> None:  # noqa: ARG001
                 np.savetxt(f, np.column_stack([np.arange(k), mesh.edges, mesh.edge_tags]),
                            fmt="%d")
             f.write("0\n")
+        stamping.finish([node, ele, poly])

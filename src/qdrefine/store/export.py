@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..io import FORMATS, GMSH_VERSIONS, atomic_path, read, write
+from ..io import FORMATS, GMSH_VERSIONS, read, triangle, write
+from ..io._core import atomic_paths
 from ..io.gmsh import writing as gmsh_writing
 from ..mesh import Mesh
 from .layout import (
@@ -149,25 +150,34 @@ def cell_tags_between(s: MeshStore, start: int, stop: int) -> NDArray:
 
 
 def write_triangle(s: MeshStore, path: Path) -> None:
+    """Triangle's three files, chunk by chunk, written as one set with the set stamp of
+    :mod:`qdrefine.io.triangle` (the same bytes as :func:`qdrefine.write`)."""
     base = path.with_suffix("")
-    with atomic_path(base.with_suffix(".node")) as tmp, tmp.open("w") as f:
-        f.write(f"# written by qdrefine\n{s.n_points} 2 0 0\n")
-        for start, p in rows(s, "points"):
-            ids = np.arange(start, start + len(p))
-            np.savetxt(f, np.column_stack([ids, p]), fmt="%d %.17g %.17g")
-    with atomic_path(base.with_suffix(".ele")) as tmp, tmp.open("w") as f:
-        tagged = s.cell_tags is not None
-        f.write(f"{s.n_triangles} 3 {int(tagged)}\n")
-        for start, t in rows(s, "triangles"):
-            cols = [np.arange(start, start + len(t)), t]
-            if tagged:
-                cols.append(cell_tags_between(s, start, start + len(t)))
-            np.savetxt(f, np.column_stack(cols), fmt="%d")
-    with atomic_path(base.with_suffix(".poly")) as tmp, tmp.open("w") as f:
-        f.write(f"# vertices are in the .node file\n0 2 0 0\n{s.n_edges} 1\n")
-        if s.edges is not None:
-            for start, e in rows(s, "edges"):
-                tag = rows_between(s, "edge_tags", start, start + len(e))
-                np.savetxt(f, np.column_stack([np.arange(start, start + len(e)), e, tag]),
-                           fmt="%d")
-        f.write("0\n")
+    stamping = triangle.Stamping()
+    targets = [base.with_suffix(e) for e in (".node", ".ele", ".poly")]
+    with atomic_paths(targets) as (node, ele, poly):
+        with node.open("w") as f:
+            f = stamping.wrap(f)
+            f.write(f"# written by qdrefine\n{s.n_points} 2 0 0\n")
+            for start, p in rows(s, "points"):
+                ids = np.arange(start, start + len(p))
+                np.savetxt(f, np.column_stack([ids, p]), fmt="%d %.17g %.17g")
+        with ele.open("w") as f:
+            f = stamping.wrap(f)
+            tagged = s.cell_tags is not None
+            f.write(f"{s.n_triangles} 3 {int(tagged)}\n")
+            for start, t in rows(s, "triangles"):
+                cols = [np.arange(start, start + len(t)), t]
+                if tagged:
+                    cols.append(cell_tags_between(s, start, start + len(t)))
+                np.savetxt(f, np.column_stack(cols), fmt="%d")
+        with poly.open("w") as f:
+            f = stamping.wrap(f)
+            f.write(f"# vertices are in the .node file\n0 2 0 0\n{s.n_edges} 1\n")
+            if s.edges is not None:
+                for start, e in rows(s, "edges"):
+                    tag = rows_between(s, "edge_tags", start, start + len(e))
+                    np.savetxt(f, np.column_stack([np.arange(start, start + len(e)), e, tag]),
+                               fmt="%d")
+            f.write("0\n")
+        stamping.finish([node, ele, poly])
