@@ -276,6 +276,15 @@ def test_sweep_work_is_at_most_b_log_b(kind, m, seed):
         assert found.ok, found.errors
 
 
+def _near_duplicates_match_all_pairs(q, tol):
+    count, a, b = check.near_duplicates(q, tol)
+    d = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
+    close = (d > 0) & (d <= tol)
+    assert count == int(close.any(axis=1).sum())
+    if count:
+        assert close[a, b]
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.integers(2, 60), st.integers(0, 2**32 - 1))
 def test_near_duplicates_match_all_pairs(n, seed):
@@ -285,12 +294,7 @@ def test_near_duplicates_match_all_pairs(n, seed):
     centres = rng.random((max(1, n // 4), 2))
     q = centres[rng.integers(0, len(centres), n)] + rng.integers(-3, 4, (n, 2)) * tol / 2.5
     q[rng.random(n) < 0.2] = q[0]  # exact copies are not near duplicates
-    count, a, b = check.near_duplicates(q, tol)
-    d = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
-    close = (d > 0) & (d <= tol)
-    assert count == int(close.any(axis=1).sum())
-    if count:
-        assert close[a, b]
+    _near_duplicates_match_all_pairs(q, tol)
 
 
 @settings(max_examples=20, deadline=None)
@@ -303,12 +307,7 @@ def test_near_duplicates_on_crowded_columns(n, seed, spacing):
     x = rng.choice([0.25, 0.25 + tol / 3, 0.75], n)
     y = np.round(rng.random(n) * n) * spacing * tol
     q = np.column_stack([x, y])
-    count, a, b = check.near_duplicates(q, tol)
-    d = np.hypot(*(q[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
-    close = (d > 0) & (d <= tol)
-    assert count == int(close.any(axis=1).sum())
-    if count:
-        assert close[a, b]
+    _near_duplicates_match_all_pairs(q, tol)
 
 
 @pytest.mark.parametrize("scheme", ["7t-qd", "4t-red"])

@@ -150,27 +150,27 @@ def edge_scan(t, tri_edges, counts):
 
 def overused(found: Findings, topo: Topology) -> bool:
     """True when no edge is shared by more than two triangles."""
-    if not topo.n_over:
-        return True
-    g = topo.first_over
-    e = topo.edges
-    tris = [found.triangle(i) for i in topo.triangles_of(g)]
-    found.add("overused-edge", f"edge {tuple(found.ids(e[g]))} is shared by "
-              f"{topo.count(g)} triangles {tuple(tris)}; at most two may share an edge",
-              topo.n_over, edge=found.ids(e[g]), triangles=tris)
-    return False
+    return _edge_problem(found, topo, "overused-edge", topo.n_over, topo.first_over,
+                         lambda edge, tris, g: f"edge {edge} is shared by {topo.count(g)} "
+                         f"triangles {tuple(tris)}; at most two may share an edge")
 
 
 def folded(found: Findings, topo: Topology) -> bool:
     """True when every interior edge is walked both ways."""
-    if not topo.n_fold:
+    return _edge_problem(found, topo, "folded-edge", topo.n_fold, topo.first_fold,
+                         lambda edge, tris, g: f"triangles {tris[0]} and {tris[1]} lie on "
+                         f"the same side of their common edge {edge}: they overlap")
+
+
+def _edge_problem(found: Findings, topo: Topology, kind: str, count: int, g: int,
+                  message) -> bool:
+    """Report ``count`` edges of ``kind``, the first one ``g`` (``message(edge, triangles,
+    g)``); True when there are none."""
+    if not count:
         return True
-    g = topo.first_fold
-    e = topo.edges
+    edge = found.ids(topo.edges[g])
     tris = [found.triangle(i) for i in topo.triangles_of(g)]
-    found.add("folded-edge", f"triangles {tris[0]} and {tris[1]} lie on the same side of "
-              f"their common edge {tuple(found.ids(e[g]))}: they overlap",
-              topo.n_fold, edge=found.ids(e[g]), triangles=tris)
+    found.add(kind, message(tuple(edge), tris, g), count, edge=edge, triangles=tris)
     return False
 
 
