@@ -1,0 +1,86 @@
+"""One adaptive step of this checkout against another version's, alternating processes on
+the same machine (the only fair comparison on a machine whose speed drifts).
+
+The mesh and marks are those of ``adaptive_bench.py`` (864k-triangle Gmsh L-shape; 1% of
+the triangles marked, clustered at the re-entrant corner or scattered at random). Each
+process times, best of 5: one uniform 7T-QD level, the clustered step and the scattered
+step. Usage (a second source tree, e.g. ``git worktree add /tmp/old REV``)::
+
+    python benchmarks/adaptive_ab.py /tmp/old/src [--rounds 2] [--json FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).parent
+
+
+def measure() -> dict:
+    sys.path.insert(0, str(HERE))
+    import numpy as np
+
+    import qdrefine
+    from adaptive_bench import big_l_shape
+    from qdrefine import examples
+    from qdrefine.marking import mark_random
+
+    mesh = big_l_shape()
+    centroids = mesh.points[mesh.triangles].mean(axis=1)
+    clustered = np.zeros(mesh.n_triangles, dtype=bool)
+    clustered[np.argsort(np.linalg.norm(centroids, axis=1), kind="stable")[
+        :mesh.n_triangles // 100]] = True
+    marks = {"clustered": clustered, "scattered": mark_random(mesh, 0.01)}
+    qdrefine.refine(examples.square(2), marked=[0])  # compiled outside the timings
+    qdrefine.refine(mesh, "7t-qd", marked=marks["scattered"])
+
+    def best(f, repeat=5):
+        out = np.inf
+        for _ in range(repeat):
+            t = time.perf_counter()
+            f()
+            out = min(out, time.perf_counter() - t)
+        return out
+
+    row = {"source": str(Path(qdrefine.__file__).parent),
+           "uniform_s": best(lambda: qdrefine.refine(mesh, "7t-qd"))}
+    for name, marked in marks.items():
+        row[f"{name}_s"] = best(lambda m=marked: qdrefine.refine(mesh, "7t-qd", marked=m))
+    return row
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("other", help="the other version's source folder (holds qdrefine/)")
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.measure:
+        print(json.dumps(measure()))
+        return
+    rows = []
+    for _ in range(args.rounds):
+        for src in (None, args.other):
+            env = dict(os.environ)
+            if src is not None:
+                env["PYTHONPATH"] = str(Path(src).resolve())
+            out = subprocess.run([sys.executable, __file__, args.other, "--measure"],
+                                 env=env, capture_output=True, text=True, check=True)
+            rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+            print(rows[-1])
+    result = {"date": time.strftime("%Y-%m-%d"), "load_average": os.getloadavg(),
+              "rows": rows}
+    if args.json:
+        args.json.write_text(json.dumps(result, indent=1))
+        print("wrote", args.json)
+
+
+if __name__ == "__main__":
+    main()
