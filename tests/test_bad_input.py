@@ -620,3 +620,23 @@ def test_a_mixed_triangle_set_is_refused(tmp_path, run):
     text = (b / "m.node").read_text().replace("# written by qdrefine", "# edited")
     (b / "m.node").write_text(text)
     assert qdrefine.read(b / "m.ele").n_triangles == examples.square(3).n_triangles
+
+
+def test_a_mixed_xdmf_pair_is_refused(tmp_path):
+    """The XDMF file and its HDF5 file from two different writes are refused with one line
+    (both carry the same stamp when written together); equal writes give equal stamps."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    qdrefine.write(a / "m.xdmf", examples.square(2))
+    qdrefine.write(b / "m.xdmf", examples.square(3))
+    (tmp_path / "c").mkdir()
+    qdrefine.write(tmp_path / "c" / "m.xdmf", examples.square(3))
+    first = (b / "m.xdmf").read_text().splitlines()[1]
+    assert first.startswith("<!-- qdrefine set ")
+    assert first == (tmp_path / "c" / "m.xdmf").read_text().splitlines()[1]  # deterministic
+    (a / "m.h5").write_bytes((b / "m.h5").read_bytes())
+    with pytest.raises(ValueError, match=r"m.h5: written by another run than m.xdmf .*"
+                                         r"a mixed set"):
+        qdrefine.read(a / "m.xdmf")
+    assert qdrefine.read(b / "m.xdmf").n_triangles == examples.square(3).n_triangles

@@ -6,10 +6,15 @@ tags, each point / cell data field as a node / cell attribute in its own dtype a
 and the physical names as meshio's ``Information`` map (which meshio reads as
 ``field_data``). The two files are written as a set (both, or neither). ParaView and meshio
 read them; qdrefine reads XDMF through meshio (which uses h5py, so large meshes read fast).
+The XML carries the comment ``<!-- qdrefine set DIGEST -->`` and the HDF5 file the root
+attribute ``qdrefine_set`` with the same digest (a hash of the XML and of a sample of every
+array): a reader that finds two different ones refuses the pair (a mixed set).
 """
 
 from __future__ import annotations
 
+import hashlib
+import re
 from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
@@ -24,10 +29,48 @@ _TYPES = {"i1": ("Char", 1), "i2": ("Short", 2), "i4": ("Int", 4), "i8": ("Int",
           "f4": ("Float", 4), "f8": ("Float", 8), "b1": ("UChar", 1)}
 
 
+_SET = re.compile(rb"<!-- qdrefine set (\w+) -->")
+
+
 def read(path: Path) -> RawMesh:
     from .meshio_formats import read_with_meshio
 
+    _check_set(path)
     return read_with_meshio(path, "xdmf", "XDMF")
+
+
+def _check_set(path: Path) -> None:
+    """Refuse an XDMF file and HDF5 file written by two different runs (both stamped)."""
+    try:
+        with open(path, "rb") as f:
+            found = _SET.search(f.read(256))
+    except OSError:
+        return  # the reader says what is wrong
+    h5_path = path.with_suffix(".h5")
+    if found is None or not h5_path.is_file():
+        return
+    try:
+        import h5py
+
+        with h5py.File(h5_path, "r") as h5:
+            theirs = h5.attrs.get("qdrefine_set")
+    except (OSError, ValueError):
+        return
+    ours = found.group(1).decode()
+    if theirs is not None and str(theirs) != ours:
+        raise ValueError(f"{h5_path}: written by another run than {path.name} (qdrefine set "
+                         f"{theirs}, {path.name}: {ours}): a mixed set, left by an "
+                         "interrupted or concurrent write; write the mesh again")
+
+
+def _digest(xml: str, arrays: list[np.ndarray]) -> str:
+    """A hash of the XML and of up to 4096 evenly spaced values of every array: equal for
+    equal writes, different (but for a coincidence) for two writes of different meshes."""
+    h = hashlib.blake2b(xml.encode(), digest_size=8)
+    for a in arrays:
+        flat = np.ascontiguousarray(a).reshape(-1)
+        h.update(np.ascontiguousarray(flat[::max(1, flat.size // 4096)]).tobytes())
+    return h.hexdigest()
 
 
 def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # noqa: ARG001
@@ -91,8 +134,11 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # no
         xml.append(f'<Information Name="Information" Value="{len(mesh.physical_names)}">'
                    f"<![CDATA[<main>{maps}</main>]]></Information>\n")
     xml.append("</Grid>\n</Domain>\n</Xdmf>\n")
+    stamp = _digest("".join(xml), [a for _, a in datasets])
+    xml[0] = xml[0].replace("?>\n", f"?>\n<!-- qdrefine set {stamp} -->\n", 1)
     with atomic_paths([h5_path, path]) as (h5_tmp, xml_tmp):
         with h5py.File(h5_tmp, "w") as h5:
+            h5.attrs["qdrefine_set"] = stamp
             for name, a in datasets:
                 if compress and a.size:
                     h5.create_dataset(name, data=a, compression="gzip", shuffle=True)
