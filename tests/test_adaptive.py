@@ -336,7 +336,7 @@ def check_step(mesh, fam, marked, fine, parents, new_fam, scheme):
     fine = Mesh._trusted(np.concatenate([mesh.points, fine.points[keep.sum():]]),
                          old_id[fine.triangles], fine.cell_tags, old_id[fine.edges],
                          fine.edge_tags)
-    new_fam = Families(new_fam.member, old_id[new_fam.rows],
+    new_fam = Families(new_fam.member, old_id[new_fam.parent_triangles],
                        np.where(new_fam.stencil >= 0, old_id[new_fam.stencil], -1))
     p1 = ints(fine.points)
     # parents in order, cell tags inherited, tagged edges cut into chains
@@ -351,7 +351,7 @@ def check_step(mesh, fam, marked, fine, parents, new_fam, scheme):
     # nested: every output triangle lies in its input triangle (its family's parent)
     region = p0[mesh.triangles]
     fm = np.flatnonzero(member >= 0)
-    region[fm] = p0[fam.rows[member[fm]]]
+    region[fm] = p0[fam.parent_triangles[member[fm]]]
     assert contained_each(p1[fine.triangles], region[parents]).all()
     check_marked_refined(mesh, fam, member, marked, fine, parents, scheme)
     check_rest_unchanged(mesh, member, marked, fine, parents)
@@ -364,10 +364,10 @@ def check_no_transition_of_transition(mesh, member, fam, new_fam, scheme):
     it is also a child of the full partition of that member's family parent."""
     old = {frozenset(r): g for g, r in enumerate(mesh.triangles.tolist()) if member[g] >= 0}
     p0 = ints(mesh.points)
-    for r in new_fam.rows.tolist():
+    for r in new_fam.parent_triangles.tolist():
         g = old.get(frozenset(r))
         if g is not None:
-            kids = children_points(p0[fam.rows[member[g]]], scheme, 1)
+            kids = children_points(p0[fam.parent_triangles[member[g]]], scheme, 1)
             key = sorted(map(tuple, p0[r].tolist()))
             assert key in [sorted(map(tuple, c.tolist())) for c in kids]
 
@@ -397,7 +397,7 @@ def check_marked_refined(mesh, fam, member, marked, fine, parents, scheme):
     if not gs.size:
         return
     fs = np.unique(member[gs])
-    kids = children_points(p0[fam.rows[fs]], scheme, 1).reshape(fs.size, t, 3, 2)
+    kids = children_points(p0[fam.parent_triangles[fs]], scheme, 1).reshape(fs.size, t, 3, 2)
     out_family = np.where(member[parents] >= 0, member[parents], -1)
     for g in gs:
         x = p1[fine.triangles[out_family == member[g]]]
@@ -456,11 +456,11 @@ def check_families(fine, fam, p):
     """Each family's members lie in its parent and fill it."""
     assert fam.member.shape == (fine.n_triangles,)
     idx = np.flatnonzero(fam.member >= 0)
-    assert contained_each(p[fine.triangles[idx]], p[fam.rows[fam.member[idx]]]).all()
+    assert contained_each(p[fine.triangles[idx]], p[fam.parent_triangles[fam.member[idx]]]).all()
     total = np.bincount(fam.member[idx], twice_areas(p, fine.triangles[idx]),
                         minlength=fam.n_families)
-    np.testing.assert_array_equal(total, twice_areas(p, fam.rows))
-    np.testing.assert_array_equal(fam.stencil[:, :3].min(axis=1), fam.rows.min(axis=1))
+    np.testing.assert_array_equal(total, twice_areas(p, fam.parent_triangles))
+    np.testing.assert_array_equal(fam.stencil[:, :3].min(axis=1), fam.parent_triangles.min(axis=1))
 
 
 def check_tag_chains(mesh, fine):
@@ -535,8 +535,8 @@ def test_untouched_families_are_copied_and_a_marked_one_is_coarsened():
     assert conformity(out).ok
     rows = {frozenset(r) for r in out.triangles.tolist()}
     assert frozenset(fine.triangles[g].tolist()) not in rows
-    assert frozenset(fam.rows[fam.member[g]].tolist()) not in \
-        {frozenset(r) for r in fam3.rows.tolist()}
+    assert frozenset(fam.parent_triangles[fam.member[g]].tolist()) not in \
+        {frozenset(r) for r in fam3.parent_triangles.tolist()}
 
 
 def test_repeated_cycles_do_not_compound_transitions():

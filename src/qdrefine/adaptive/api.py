@@ -129,7 +129,7 @@ def _finished(before: Mesh, res: Step) -> tuple[Mesh, Families]:
     out = Mesh._trusted(points, tris, mesh.cell_tags, edges, edge_tags, point_data,
                         mesh.cell_data, mesh.physical_names)
     if drop.size:
-        fam = Families(fam.member, new_id[fam.rows], new_id[fam.stencil])
+        fam = Families(fam.member, new_id[fam.parent_triangles], new_id[fam.stencil])
     return out, fam
 
 

@@ -24,7 +24,7 @@ class Families:
     member : (M,) int64
         Family of each triangle, ``-1`` for triangles that are not transition children.
         The members of a family are consecutive rows (as ``refine_step`` emits them).
-    rows : (F, 3) int64
+    parent_triangles : (F, 3) int64
         Each family's parent triangle: its vertex row, counter-clockwise.
     stencil : (F, S) int64
         The parent's points in :func:`~qdrefine.adaptive.patterns.pattern_stencil` order:
@@ -35,12 +35,12 @@ class Families:
     """
 
     member: NDArray[np.int64]
-    rows: NDArray[np.int64]
+    parent_triangles: NDArray[np.int64]
     stencil: NDArray[np.int64]
 
     def __post_init__(self) -> None:
         member = np.asarray(self.member, dtype=np.int64)
-        rows = np.asarray(self.rows, dtype=np.int64).reshape(-1, 3)
+        rows = np.asarray(self.parent_triangles, dtype=np.int64).reshape(-1, 3)
         stencil = np.asarray(self.stencil, dtype=np.int64)
         f = rows.shape[0]
         if member.ndim != 1:
@@ -50,7 +50,7 @@ class Families:
                              f"{stencil.shape}")
         if member.size and (member.min() < -1 or member.max() >= f):
             raise ValueError(f"families: member ids must be in -1..{f - 1}")
-        for name, value in (("member", member), ("rows", rows), ("stencil", stencil)):
+        for name, value in (("member", member), ("parent_triangles", rows), ("stencil", stencil)):
             value.flags.writeable = False
             object.__setattr__(self, name, value)
         count = self.counts()
@@ -82,7 +82,7 @@ class Families:
 
     @property
     def n_families(self) -> int:
-        return int(self.rows.shape[0])
+        return int(self.parent_triangles.shape[0])
 
     def counts(self) -> NDArray[np.int64]:
         """Members per family ``(F,)``."""

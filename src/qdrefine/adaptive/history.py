@@ -78,7 +78,7 @@ def with_history(mesh: Mesh, families: Families) -> Mesh:
     rows = None
     if (member >= 0).any():
         rows = np.full((member.size, 3), -1, dtype=np.int64)
-        rows[member >= 0] = families.rows[member[member >= 0]]
+        rows[member >= 0] = families.parent_triangles[member[member >= 0]]
     return Mesh._trusted(mesh.points, mesh.triangles, mesh.cell_tags, mesh.edges,
                          mesh.edge_tags, mesh.point_data, mesh.cell_data,
                          mesh.physical_names, rows)

@@ -153,7 +153,7 @@ def _families(rows: NDArray[np.int64], start: NDArray[np.int64], nk: NDArray[np.
               kept_fam: NDArray[np.int64], old: Families) -> Families:
     """The output's families: the new transitions and the copied ones, by position."""
     items = np.concatenate([s for s, _ in new] + [kept]).astype(np.int64)
-    parent = np.concatenate([rows[s] for s, _ in new] + [old.rows[kept_fam]])
+    parent = np.concatenate([rows[s] for s, _ in new] + [old.parent_triangles[kept_fam]])
     sten = np.concatenate([ids for _, ids in new] + [old.stencil[kept_fam]])
     order = np.argsort(items)
     items, parent, sten = items[order], parent[order], sten[order]

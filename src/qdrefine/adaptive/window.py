@@ -125,7 +125,8 @@ def _sub_step(mesh: Mesh, window: NDArray[np.bool_], marked: NDArray[np.bool_],
     new_fam[used] = np.arange(used.size)
     to_local = np.full(mesh.n_points + 1, -1, dtype=np.int64)  # -1 stays -1
     to_local[verts] = np.arange(verts.size)
-    sub_fam = Families(new_fam[member], to_local[fam.rows[used]], to_local[fam.stencil[used]])
+    sub_fam = Families(new_fam[member], to_local[fam.parent_triangles[used]],
+                       to_local[fam.stencil[used]])
     return step(sub, marked[rows], fam_marked[used], sch, sub_fam), verts
 
 
@@ -200,7 +201,7 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     member[out_rows] = np.where(res.families.member >= 0,
                                 fam.n_families + res.families.member, -1)
     ids = np.concatenate([old, fam.n_families + np.arange(res.families.n_families)])
-    rows_all = np.concatenate([fam.rows[old], to_global[res.families.rows]])
+    rows_all = np.concatenate([fam.parent_triangles[old], to_global[res.families.parent_triangles]])
     sten_all = np.concatenate([fam.stencil[old],
                                np.where(res.families.stencil >= 0,
                                         to_global[np.maximum(res.families.stencil, 0)], -1)])

@@ -73,7 +73,7 @@ def start(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_],
     f1 = np.arange(fam.n_families)
     own = np.concatenate([marked[t0], fam_marked])
     keys, pts = fam.registry()
-    rows = np.concatenate([mesh.triangles[t0].astype(np.int64), fam.rows])
+    rows = np.concatenate([mesh.triangles[t0].astype(np.int64), fam.parent_triangles])
     tree = Tree(rows, np.concatenate([t0, inp.first]), np.concatenate([-1 + 0 * t0, f1]),
                 own, own.copy(), np.zeros(own.size, bool), np.zeros(own.size, bool),
                 canonical_labels(mesh.points, rows), mesh.points, keys, pts)
