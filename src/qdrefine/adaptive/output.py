@@ -20,11 +20,11 @@ from .patterns import (
     tables,
     uses_centroid,
 )
-from .rounds import Closure, new_points, unchanged
+from .rounds import SplitPlan, new_points, unchanged
 from .working import StepInput, Tree, emit_full
 
 
-def emit_step(inp: StepInput, tree: Tree, cl: Closure
+def emit_step(inp: StepInput, tree: Tree, cl: SplitPlan
               ) -> tuple[Mesh, NDArray[np.int64], Families, NDArray[np.bool_],
                          NDArray[np.bool_]]:
     """Children of every working triangle, in input order; unchanged families are copied.
@@ -41,7 +41,7 @@ def emit_step(inp: StepInput, tree: Tree, cl: Closure
     for c in PARTIAL:
         sel = np.flatnonzero((code == c) & ~keep)
         if sel.size:
-            coords = stencil_coordinates(canonical_corners(points, cl.rows[sel],
+            coords = stencil_coordinates(canonical_corners(points, cl.triangles[sel],
                                                            cl.labels[sel]), k)
             choice = choose(coords, k, c)[0]
             nk[sel] = tables(k, c)[2][choice]
@@ -54,17 +54,17 @@ def emit_step(inp: StepInput, tree: Tree, cl: Closure
     parents = np.repeat(tree.key[cl.leaves], nk)
 
     same = np.flatnonzero(code == 0)
-    tris[start[same]] = cl.rows[same]
+    tris[start[same]] = cl.triangles[same]
     full = np.flatnonzero(code == FULL)
     if full.size:
-        kids = emit_full(points, cl.rows[full], ep[cl.tri_edges[full]], inp.sch)
+        kids = emit_full(points, cl.triangles[full], ep[cl.tri_edges[full]], inp.sch)
         tris[blocks(start[full], nk[full])] = kids.reshape(-1, 3)
     new_fam = []  # (working triangles, stencils)
     centroids = [points]
     centroid_of = []  # canonical corners (C, 3) of each new centroid, in id order
     n_points = points.shape[0]
     for sel, c, choice, coords in chosen:
-        ids = stencil_ids(cl.rows[sel], cl.labels[sel], cl.ce[sel], ep, k)
+        ids = stencil_ids(cl.triangles[sel], cl.labels[sel], cl.ce[sel], ep, k)
         if k == 2:  # the centroid, a new point where the chosen pattern uses it
             used = uses_centroid(k, c, choice)
             x = np.full((sel.size, 1), -1, dtype=np.int64)
@@ -80,7 +80,7 @@ def emit_step(inp: StepInput, tree: Tree, cl: Closure
     olds = blocks(inp.first[kept_fam], nk[kept])
     tris[rows] = mesh.triangles[olds]
     parents[rows] = olds
-    families = _families(cl.rows, start, nk, new_fam, kept, kept_fam, inp.fam)
+    families = _families(cl.triangles, start, nk, new_fam, kept, kept_fam, inp.fam)
 
     dtype = index_dtype(points.shape[0])
     cell_tags = None if mesh.cell_tags is None else mesh.cell_tags[parents]

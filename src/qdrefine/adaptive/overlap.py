@@ -25,7 +25,7 @@ def overlap_marks(inp: StepInput, tree: Tree, kids: NDArray[np.int64]) -> None:
         p = tree.reg_pts[lookup(tree.reg_keys, edge_keys(a, b))]
         sten[:, 3 + k * e: 3 + k * (e + 1)] = oriented(p, a, b)
     ref = _reference(k)
-    child = ref[_local(tree.rows[nodes], sten)]  # (P, T, 3, 2)
+    child = ref[_local(tree.triangles[nodes], sten)]  # (P, T, 3, 2)
     marked = ref[_local(inp.mesh.triangles[inp.pairs[:, 0]][:, None, :], sten)]  # (P, 1, 3, 2)
     hit = _interiors_meet(child, np.broadcast_to(marked, child.shape))
     hit &= _twice_area(child) >= _twice_area(marked)  # the smaller ones refine it already

@@ -21,11 +21,13 @@ from .working import StepInput, Tree, expand, with_edge_points
 
 
 @dataclass
-class Closure:
-    """The working mesh's edges and the closure of its marks."""
+class SplitPlan:
+    """The working mesh's edges and which of them get points: the longest-edge closure
+    (:func:`~qdrefine.adaptive.longest_edge.closure`) of its marks, made by
+    :func:`plan_splits`."""
 
     leaves: NDArray[np.int64]  # tree node of each working triangle
-    rows: NDArray[np.int64]
+    triangles: NDArray[np.int64]  # (W, 3) their vertex rows
     edges: NDArray
     tri_edges: NDArray[np.int64]
     counts: NDArray[np.int64]
@@ -44,14 +46,14 @@ class Closure:
         return split_codes(self.split[self.ce])
 
 
-def close(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.int64]],
-                                         NDArray[np.bool_]] | None = None) -> Closure:
+def plan_splits(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.int64]],
+                                               NDArray[np.bool_]] | None = None) -> SplitPlan:
     """Edges of the working mesh and the closure of its marks (pre-split edges included),
     with ``upgrades(nodes, codes)`` (e.g. :class:`Upgrades`) saying which triangles get
     ``NO`` split too."""
     leaves = tree.leaves()
-    rows = tree.rows[leaves]
-    edges, tri_edges, counts = number_edges(rows, tree.points.shape[0])
+    triangles = tree.triangles[leaves]
+    edges, tri_edges, counts = number_edges(triangles, tree.points.shape[0])
     keys = edge_keys(edges[:, 0], edges[:, 1])
     pos = lookup(tree.reg_keys, keys)
     labels = tree.labels[leaves]
@@ -59,10 +61,10 @@ def close(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.int64]],
     split, _ = closure(ce, tree.mark[leaves], edges.shape[0], presplit=pos >= 0,
                        upgrade=None if upgrades is None else
                        lambda t, code: upgrades(leaves[t], code), layers=UPGRADE_LAYERS)
-    return Closure(leaves, rows, edges, tri_edges, counts, keys, pos, labels, ce, split)
+    return SplitPlan(leaves, triangles, edges, tri_edges, counts, keys, pos, labels, ce, split)
 
 
-def conflicts(inp: StepInput, tree: Tree, cl: Closure) -> bool:
+def conflicts(inp: StepInput, tree: Tree, cl: SplitPlan) -> bool:
     """Expand the coarse side of every pre-split edge one of whose pieces gets points too
     (two levels of points on one working edge)."""
     cand = np.flatnonzero(cl.pre & (cl.counts == 1))
@@ -132,7 +134,7 @@ class Upgrades:
     def __call__(self, nodes: NDArray[np.int64], code: NDArray[np.int64]) -> NDArray[np.bool_]:
         if self.inp.k != 2:
             return np.zeros(nodes.shape, dtype=bool)
-        size = self.tree.rows.shape[0]
+        size = self.tree.triangles.shape[0]
         if self.verdicts.shape[0] < size:  # the tree grew
             grow = np.full((size - self.verdicts.shape[0], 2), -1, dtype=np.int8)
             self.verdicts = np.concatenate([self.verdicts, grow])
@@ -145,7 +147,7 @@ class Upgrades:
 
     def _judge(self, nodes: NDArray[np.int64], col: int) -> NDArray[np.int8]:
         k, tree = self.inp.k, self.tree
-        corners = canonical_corners(tree.points, tree.rows[nodes], tree.labels[nodes])
+        corners = canonical_corners(tree.points, tree.triangles[nodes], tree.labels[nodes])
         coords = stencil_coordinates(corners, k)
         own = min_angles(corners)
         if col == 0:
@@ -162,7 +164,7 @@ def full_quality(corners: NDArray[np.float64], sch: Scheme) -> NDArray[np.float6
     return min_angles(points[np.arange(tris.shape[0])[:, None, None], tris]).min(axis=1)
 
 
-def unchanged(inp: StepInput, tree: Tree, cl: Closure, code: NDArray[np.int64]
+def unchanged(inp: StepInput, tree: Tree, cl: SplitPlan, code: NDArray[np.int64]
               ) -> NDArray[np.bool_]:
     """Family parents whose transition stays the same (their members are copied)."""
     f = tree.fam[cl.leaves]
@@ -171,7 +173,7 @@ def unchanged(inp: StepInput, tree: Tree, cl: Closure, code: NDArray[np.int64]
     return out
 
 
-def new_points(tree: Tree, cl: Closure, k: int
+def new_points(tree: Tree, cl: SplitPlan, k: int
                ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """All points and the point ids ``(E, k)`` of every split edge (from the lower id),
     ``-1`` on unsplit edges: existing ones from the registry, the others numbered by rank."""

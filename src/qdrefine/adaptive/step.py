@@ -14,7 +14,7 @@ from ..schemes import Scheme
 from .families import Families
 from .output import emit_step
 from .overlap import overlap_marks
-from .rounds import Upgrades, close, conflicts
+from .rounds import Upgrades, conflicts, plan_splits
 from .working import start
 
 
@@ -74,7 +74,7 @@ def _one_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool
     overlap_marks(inp, tree, kids)
     upgrades = Upgrades(inp, tree)
     while True:
-        cl = close(tree, upgrades)
+        cl = plan_splits(tree, upgrades)
         if not conflicts(inp, tree, cl):
             return emit_step(inp, tree, cl)
 

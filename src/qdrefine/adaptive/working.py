@@ -39,7 +39,7 @@ class Tree:
     the family parents (roots), and the children of *expanded* nodes. The leaves, in order
     of ``key`` then creation, are the working mesh. Arrays only grow during a step."""
 
-    rows: NDArray[np.int64]  # (Nn, 3) counter-clockwise
+    triangles: NDArray[np.int64]  # (Nn, 3) vertex rows, counter-clockwise
     key: NDArray[np.int64]  # input triangle the node's output maps to
     fam: NDArray[np.int64]  # family of a root parent node, -1 otherwise
     mark: NDArray[np.bool_]  # fully partitioned (marked or promoted)
@@ -85,16 +85,16 @@ def expand(tree: Tree, nodes: NDArray[np.int64], sch: Scheme) -> NDArray[np.int6
     """Replace ``nodes`` by the children of their full partitions (new points on the edges
     that have none yet); returns the children's node ids ``(X, T)``."""
     k, t = sch.stencil.per_edge, sch.n_children
-    rows = tree.rows[nodes]
+    rows = tree.triangles[nodes]
     ek = edge_keys(rows, np.roll(rows, -1, axis=1))
     new = np.unique(ek[lookup(tree.reg_keys, ek) < 0])
     points, ids = with_edge_points(tree.points, np.stack([new // KEY, new % KEY], axis=1), k)
     tree.points = points
     tree.reg_keys, tree.reg_pts = register(tree.reg_keys, tree.reg_pts, new, ids)
     kids = emit_full(points, rows, tree.reg_pts[lookup(tree.reg_keys, ek)], sch)
-    first = tree.rows.shape[0]
+    first = tree.triangles.shape[0]
     size = nodes.size * t
-    tree.rows = np.concatenate([tree.rows, kids.reshape(-1, 3)])
+    tree.triangles = np.concatenate([tree.triangles, kids.reshape(-1, 3)])
     tree.labels = np.concatenate([tree.labels, canonical_labels(points, kids.reshape(-1, 3))])
     tree.key = np.concatenate([tree.key, np.repeat(tree.key[nodes], t)])
     tree.fam = np.concatenate([tree.fam, np.full(size, -1, dtype=np.int64)])
