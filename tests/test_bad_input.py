@@ -640,3 +640,37 @@ def test_a_mixed_xdmf_pair_is_refused(tmp_path):
                                          r"a mixed set"):
         qdrefine.read(a / "m.xdmf")
     assert qdrefine.read(b / "m.xdmf").n_triangles == examples.square(3).n_triangles
+
+
+def _file_size_limit(limit: int):
+    """For a child process: files may not grow beyond ``limit`` bytes (the kernel refuses
+    the write with EFBIG, as a full disk refuses with ENOSPC: a real failure, not a mock)."""
+    import resource
+    import signal
+
+    def apply():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # an error, not a killed process
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return apply
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX resource limits")
+@pytest.mark.parametrize("name", ["out.msh", "out.vtu", "out.node", "out.xdmf", "out.stl"])
+def test_a_write_the_kernel_refuses_leaves_the_old_output(tmp_path, name):
+    """The kernel refuses the write half way (file size limit): one line naming the file,
+    exit 1, the old output and the input untouched, no temporary file left."""
+    src = tmp_path / "in.msh"
+    qdrefine.write(src, examples.plate_with_hole())
+    out = tmp_path / name
+    qdrefine.write(out, examples.square(1))
+    before = _snapshot(tmp_path)
+    result = subprocess.run([sys.executable, "-m", "qdrefine", "refine", src, out, "--levels",
+                             "2", "-q"], capture_output=True, text=True, timeout=300,
+                            preexec_fn=_file_size_limit(200_000))
+    assert result.returncode == 1, result.stderr
+    error = result.stderr.strip().splitlines()[-1]  # after the notes on what STL drops
+    assert error.startswith("qdrefine: error: ") and error.endswith("File too large")
+    assert f"{out.with_suffix('.h5') if name.endswith('.xdmf') else out}: cannot write" in error
+    assert "Traceback" not in result.stderr
+    assert _snapshot(tmp_path) == before

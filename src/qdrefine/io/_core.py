@@ -245,9 +245,19 @@ def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
             os.close(fd)
             temps.append(Path(tmp))
             os.chmod(tmp, permission_bits(path))
-        yield temps
-        for tmp, path in zip(temps, targets, strict=True):
-            os.replace(tmp, path)
+        try:
+            yield temps
+            for tmp, path in zip(temps, targets, strict=True):
+                os.replace(tmp, path)
+        except OSError as exc:  # a full disk, a file size limit ...: name the file
+            if str(exc).startswith(tuple(str(p) for p in targets)):
+                raise
+            named = next((p for t, p in zip(temps, targets, strict=True)
+                          if exc.filename is not None and str(t) == str(exc.filename)),
+                         targets[0])
+            error = OSError(f"{named}: cannot write: {exc.strerror or exc}")
+            error.errno = exc.errno
+            raise error from None
     except BaseException:
         for tmp in temps:
             with contextlib.suppress(OSError):

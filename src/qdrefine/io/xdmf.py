@@ -13,7 +13,9 @@ array): a reader that finds two different ones refuses the pair (a mixed set).
 
 from __future__ import annotations
 
+import errno
 import hashlib
+import os
 import re
 from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
@@ -61,6 +63,17 @@ def _check_set(path: Path) -> None:
         raise ValueError(f"{h5_path}: written by another run than {path.name} (qdrefine set "
                          f"{theirs}, {path.name}: {ours}): a mixed set, left by an "
                          "interrupted or concurrent write; write the mesh again")
+
+
+def _write_error(path: Path, exc: BaseException) -> OSError:
+    """One line for a failed HDF5 write: the file and the system's reason (HDF5 puts the
+    ``errno`` inside a long message)."""
+    found = re.search(r"errno = (\d+)", str(exc))
+    number = getattr(exc, "errno", None) or (int(found.group(1)) if found else None)
+    reason = os.strerror(number) if number else str(exc).split("(")[0].strip()
+    error = OSError(f"{path}: cannot write: {reason}")
+    error.errno = number if number else errno.EIO
+    return error
 
 
 def _digest(xml: str, arrays: list[np.ndarray]) -> str:
@@ -137,11 +150,14 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # no
     stamp = _digest("".join(xml), [a for _, a in datasets])
     xml[0] = xml[0].replace("?>\n", f"?>\n<!-- qdrefine set {stamp} -->\n", 1)
     with atomic_paths([h5_path, path]) as (h5_tmp, xml_tmp):
-        with h5py.File(h5_tmp, "w") as h5:
-            h5.attrs["qdrefine_set"] = stamp
-            for name, a in datasets:
-                if compress and a.size:
-                    h5.create_dataset(name, data=a, compression="gzip", shuffle=True)
-                else:
-                    h5.create_dataset(name, data=a)
+        try:
+            with h5py.File(h5_tmp, "w") as h5:
+                h5.attrs["qdrefine_set"] = stamp
+                for name, a in datasets:
+                    if compress and a.size:
+                        h5.create_dataset(name, data=a, compression="gzip", shuffle=True)
+                    else:
+                        h5.create_dataset(name, data=a)
+        except (OSError, RuntimeError) as exc:  # HDF5's own errors (a full disk ...)
+            raise _write_error(h5_path, exc) from None
         xml_tmp.write_text("".join(xml), encoding="utf-8")
