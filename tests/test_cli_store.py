@@ -144,3 +144,27 @@ def test_sigterm_is_handled_like_ctrl_c(tmp_path):
     got = store.to_mesh(tmp_path / "out.zarr")
     assert np.array_equal(got.points, old.points) and np.array_equal(got.triangles,
                                                                      old.triangles)
+
+
+def test_a_write_the_kernel_refuses_on_the_workers_is_one_line(tmp_path):
+    """Issue 20, item 7 with a real failure: the kernel refuses the workers' chunk writes
+    (a file size limit, inherited by the worker processes, as a full disk would): one line
+    naming the target (no worker traceback), the old target kept, no temporaries."""
+    import resource
+    import signal
+
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (200_000, 200_000))
+
+    store.create(tmp_path / "in.zarr", examples.jittered_square(40, 1, 0.0, "all"))
+    store.create(tmp_path / "out.zarr", examples.square(1))
+    result = subprocess.run([sys.executable, "-m", "qdrefine", "refine", tmp_path / "in.zarr",
+                             tmp_path / "out.zarr", "--levels", "2", "--dask"],
+                            capture_output=True, text=True, timeout=300, preexec_fn=limit)
+    assert result.returncode == 1
+    assert result.stderr.splitlines() == [
+        "dask cluster ready",
+        f"qdrefine: error: {tmp_path / 'out.zarr'}: cannot write: File too large"]
+    assert store.to_mesh(tmp_path / "out.zarr").n_triangles == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.zarr", "out.zarr"]

@@ -146,31 +146,39 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
     timeouts = {"pause_timeout": float(pause_timeout), "stall_timeout": float(stall_timeout)}
     report = Reporter(progress, 1 + (3 + 2 * (levels - 1) if levels else 1))
     in_process = any(u.startswith("memory://") for u in (src.path, url))
-    with sigterm_as_interrupt(), connect(client, address, in_process) as (cl, dashboard), \
-            quiet_shuffle_logs(), mesh_store.writing(url) as out:
-        report.message(f"dask dashboard: {dashboard}" if dashboard else "dask cluster ready")
-        n_workers = check_workers(cl, src.path, url, src.chunk_size)
-        work = f"{out}/{WORK}"
-        current, times = src, []
-        for level in range(1, levels + 1):
-            t0 = time.perf_counter()
-            last = level == levels
-            path = out if last else f"{work}/level-{level}.zarr"
-            meta = _metadata(src, sch, levels) if last else {}
-            Level(cl, current, sch, path, f"{work}/coords-{level}",
-                  None if last else f"{work}/coords-{level + 1}", level, meta,
-                  report.prefixed(f"level {level}/{levels}: "), timeouts).run()
-            if current is not src:
-                mesh_store.remove(current.path)
-            mesh_store.remove(f"{work}/coords-{level}")
-            if not last:
-                mesh_store.finish(path)
-                current = mesh_store.open(path)
-            times.append(time.perf_counter() - t0)
-        if levels == 0:
-            report.stage("copying the source")
-            copy_store(cl, src, out, _metadata(src, sch, 0), timeouts)
-        mesh_store.remove(work)
+    try:
+        with sigterm_as_interrupt(), connect(client, address, in_process) as (cl, dashboard), \
+                quiet_shuffle_logs(), mesh_store.writing(url) as out:
+            report.message(f"dask dashboard: {dashboard}" if dashboard else "dask cluster ready")
+            n_workers = check_workers(cl, src.path, url, src.chunk_size)
+            work = f"{out}/{WORK}"
+            current, times = src, []
+            for level in range(1, levels + 1):
+                t0 = time.perf_counter()
+                last = level == levels
+                path = out if last else f"{work}/level-{level}.zarr"
+                meta = _metadata(src, sch, levels) if last else {}
+                Level(cl, current, sch, path, f"{work}/coords-{level}",
+                      None if last else f"{work}/coords-{level + 1}", level, meta,
+                      report.prefixed(f"level {level}/{levels}: "), timeouts).run()
+                if current is not src:
+                    mesh_store.remove(current.path)
+                mesh_store.remove(f"{work}/coords-{level}")
+                if not last:
+                    mesh_store.finish(path)
+                    current = mesh_store.open(path)
+                times.append(time.perf_counter() - t0)
+            if levels == 0:
+                report.stage("copying the source")
+                copy_store(cl, src, out, _metadata(src, sch, 0), timeouts)
+            mesh_store.remove(work)
+    except OSError as exc:  # a full disk, a file size limit ... in a worker: name the store
+        if str(exc).startswith((url, src.path)) or isinstance(exc, (FileNotFoundError,
+                                                                     ClusterError)):
+            raise
+        error = OSError(f"{url}: cannot write: {exc.strerror or exc}")
+        error.errno = exc.errno
+        raise error from None
     result = mesh_store.open(url)
     report.done(f"wrote {url}")
     return RefineSummary(url, sch.name, levels, result.n_points, result.n_triangles,

@@ -91,11 +91,19 @@ def connect(client: Client | None, address: str | None, in_process: bool = False
             raise OSError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
     else:
         own = local_client(processes=not in_process)
+        if not in_process:  # our own worker processes: a failed task is one line of ours
+            own.run(_quiet_worker_logs)
     try:
         yield own, _dashboard(own)
     finally:
         with contextlib.suppress(Exception):
             own.close()
+
+
+def _quiet_worker_logs() -> None:
+    """Run on the workers of a local cluster: they do not log a failed task ("Compute
+    Failed" with its traceback); :func:`refine_store` turns the failure into one line."""
+    logging.getLogger("distributed.worker").setLevel(logging.CRITICAL)
 
 
 def _dashboard(client: Client) -> str | None:
