@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 import qdrefine
 from cli_runner import cli, finish, start
@@ -674,3 +676,40 @@ def test_a_write_the_kernel_refuses_leaves_the_old_output(tmp_path, name):
     assert f"{out.with_suffix('.h5') if name.endswith('.xdmf') else out}: cannot write" in error
     assert "Traceback" not in result.stderr
     assert _snapshot(tmp_path) == before
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(1e-11, 1e-7), st.floats(1e5, 1e9), st.sampled_from(["7t-qd", "4t-le"]),
+       st.integers(0, 2**32 - 1))
+def test_check_predicts_the_refusals_of_refine(height, offset, scheme, seed):
+    """``uniform.refused`` (behind ``qdrefine check``'s too-thin warning) lists exactly the
+    triangles one level of refinement refuses: refine raises for the first of them, and
+    refines when there is none."""
+    from qdrefine.schemes import get_scheme
+    from qdrefine.uniform import RefusedTriangle, refused
+
+    rng = np.random.default_rng(seed)
+    base = np.array([[0, 0], [1, 0], [0.5, 0.9], [0.5, -height], [1.5, 0.8]])
+    points = base * rng.uniform(0.5, 2.0) + offset
+    try:
+        mesh = Mesh(points, [[0, 1, 2], [0, 3, 1], [1, 4, 2]])
+    except ValueError:  # the needle rounded flat already: not a mesh
+        assume(False)
+    rows = refused(mesh.points, mesh.triangles, get_scheme(scheme))
+    if rows.size:
+        with pytest.raises(RefusedTriangle) as info:
+            qdrefine.refine(mesh, scheme)
+        assert info.value.triangle == rows[0]
+    else:
+        assert qdrefine.refine(mesh, scheme).n_triangles > mesh.n_triangles
+
+
+def test_check_warns_about_what_refine_would_refuse(tmp_path, run):
+    path = tmp_path / "needle.msh"
+    qdrefine.write(path, Mesh(np.array([[0, 0], [1, 0], [0.5, 1e-9]]) + 1e7, [[0, 1, 2]]))
+    result = run("check", path, "--json")
+    assert result.returncode == 0  # a warning: the mesh is valid
+    thin = [p for p in json.loads(result.stdout)["problems"] if p["kind"] == "too-thin"]
+    assert thin and thin[0]["where"]["triangle"] == 1 and thin[0]["where"]["vertices"] == [1, 2, 3]
+    refined = run("refine", path, tmp_path / "out.msh")
+    assert refined.returncode == 1 and "triangle 1 (1, 2, 3) is too thin" in refined.stderr

@@ -16,7 +16,7 @@ from .numbering import EdgeBuckets, bucket_points, sort_edges
 from .predicates import orient_signs
 from .schemes import Scheme
 
-__all__ = ["RefusedTriangle", "refine_uniform", "refine_arrays", "check_rounding",
+__all__ = ["RefusedTriangle", "refine_uniform", "refine_arrays", "check_rounding", "refused",
            "split_tagged_edges"]
 
 
@@ -132,6 +132,26 @@ def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: 
             f"its new points rounded to float64 give a child with {what} "
             f"({bad.size} such children in all); translate the mesh nearer the origin or "
             "refine less")
+
+
+def refused(points: NDArray[np.float64], triangles: NDArray[np.integer], sch: Scheme
+            ) -> NDArray[np.int64]:
+    """Rows of the triangles that one uniform level by ``sch`` refuses (too thin for their
+    distance from the origin: :func:`check_rounding`), all of them, in order.
+
+    Only the suspects of :func:`kernels.rounding_suspects` are refined, as a mesh of their
+    own whose vertices keep their order, so every new point is computed from the same end
+    of its edge, and rounded the same, as in the refinement of the whole mesh.
+    """
+    k = sch.stencil.per_edge
+    rows = np.flatnonzero(rounding_suspects(points, triangles, k + 1))
+    if not rows.size:
+        return rows
+    verts = np.unique(triangles[rows])
+    local = np.searchsorted(verts, triangles[rows]).astype(np.int64)
+    new_points, children, _ = refine_arrays(points[verts], local, sch, strict=False)
+    flat = (orient_signs(new_points, children) <= 0).reshape(rows.size, sch.n_children)
+    return rows[flat.any(axis=1)]
 
 
 class RefusedTriangle(ValueError):

@@ -52,6 +52,9 @@ KINDS: dict[str, tuple[str, str]] = {
                                  "refinement)"),
     "pinched-vertex": ("warning", "a vertex where separate fans of triangles touch"),
     "small-angle": ("warning", "triangles with a smallest angle below the threshold"),
+    "too-thin": ("warning", "triangles so thin for their distance from the origin that their "
+                            "new points, rounded to float64, would flatten a child: "
+                            "refinement refuses them (`qdrefine check` only)"),
     "skipped": ("note", "checks that could not run because of an earlier error"),
 }
 

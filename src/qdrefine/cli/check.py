@@ -5,8 +5,11 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from ..check import MIN_ANGLE, Checked
-from ..io import check_file
+from ..check import MIN_ANGLE, Checked, Problem
+from ..check.report import Findings
+from ..io import RawMesh, check_file
+from ..schemes import get_scheme
+from ..uniform import refused
 from . import _common
 
 HELP = "check a mesh file: list every problem (exit 0 when usable, 1 when not)"
@@ -22,14 +25,37 @@ def add_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-angle", type=_common.positive_float, default=MIN_ANGLE,
                         metavar="DEG",
                         help=f"warn about triangles with a smaller angle (default {MIN_ANGLE:g})")
+    parser.add_argument("--scheme", default="7t-qd", metavar="NAME",
+                        help="warn about triangles that refining by this scheme would refuse "
+                        "(too thin for float64 children; default 7t-qd)")
 
 
 def run(args: argparse.Namespace) -> int:
     with _common.session():
-        _, found = check_file(args.input, min_angle=args.min_angle)
+        raw, found = check_file(args.input, min_angle=args.min_angle)
+        if found.ok:  # what refine would refuse: one level of the scheme, exactly
+            too_thin(raw, found, args.scheme)
         report = summary(args.input, found)
         print(_common.dumps(report) if args.json else format_report(report))
     return 0 if found.ok else 1
+
+
+def too_thin(raw: RawMesh, found: Checked, scheme: str) -> None:
+    """Add the ``too-thin`` warning: triangles one level of ``scheme`` refuses (numbered as
+    the other problems of the file)."""
+    sch = get_scheme(scheme)
+    rows = refused(found.points, found.triangles, sch)
+    if not rows.size:
+        return
+    names = Findings(False, raw.base, raw.point_numbers, raw.triangle_numbers)
+    i = int(rows[0])
+    tri, verts = names.triangle(i), tuple(names.ids(found.triangles[i]))
+    found.problems.append(raw.locate(Problem(
+        "too-thin", f"triangle {tri} {verts} is too thin for its distance from the origin: "
+        f"refining it by {sch.name} would round its new points into a flat child, and "
+        f"refine refuses it ({rows.size} such triangles; translate the mesh nearer the "
+        "origin)", int(rows.size), {"triangle": tri, "vertices": list(verts),
+                                    "scheme": sch.name})))
 
 
 def summary(path: str, found: Checked) -> dict[str, Any]:
