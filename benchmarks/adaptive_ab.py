@@ -25,9 +25,9 @@ HERE = Path(__file__).parent
 def measure() -> dict:
     sys.path.insert(0, str(HERE))
     import numpy as np
+    from adaptive_bench import big_l_shape
 
     import qdrefine
-    from adaptive_bench import big_l_shape
     from qdrefine import examples
     from qdrefine.marking import mark_random
 

@@ -685,8 +685,9 @@ def test_check_predicts_the_refusals_of_refine(height, offset, scheme, seed):
     """``uniform.refused`` (behind ``qdrefine check``'s too-thin warning) lists exactly the
     triangles one level of refinement refuses: refine raises for the first of them, and
     refines when there is none."""
+    from qdrefine.predicates import orient_signs
     from qdrefine.schemes import get_scheme
-    from qdrefine.uniform import RefusedTriangle, refused
+    from qdrefine.uniform import RefusedTriangle, refine_arrays, refused
 
     rng = np.random.default_rng(seed)
     base = np.array([[0, 0], [1, 0], [0.5, 0.9], [0.5, -height], [1.5, 0.8]])
@@ -695,7 +696,12 @@ def test_check_predicts_the_refusals_of_refine(height, offset, scheme, seed):
         mesh = Mesh(points, [[0, 1, 2], [0, 3, 1], [1, 4, 2]])
     except ValueError:  # the needle rounded flat already: not a mesh
         assume(False)
-    rows = refused(mesh.points, mesh.triangles, get_scheme(scheme))
+    sch = get_scheme(scheme)
+    rows = refused(mesh.points, mesh.triangles, sch)
+    # every refused triangle: those whose children come out flat in the whole mesh
+    points, children, _ = refine_arrays(mesh.points, mesh.triangles, sch, strict=False)
+    flat = (orient_signs(points, children) <= 0).reshape(mesh.n_triangles, sch.n_children)
+    np.testing.assert_array_equal(rows, np.flatnonzero(flat.any(axis=1)))
     if rows.size:
         with pytest.raises(RefusedTriangle) as info:
             qdrefine.refine(mesh, scheme)

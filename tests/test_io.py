@@ -367,3 +367,23 @@ def test_compressed_output_is_smaller_and_reads_back_the_same(tmp_path, ext, run
     result = run("refine", DATA / "two_regions_22.msh", tmp_path / "o.msh", "--compress")
     assert result.returncode == 1 and result.stderr.count("\n") == 1
     assert "--compress applies to .vtu and .xdmf output only" in result.stderr
+
+
+def test_only_refused_writes_are_named_as_writes(tmp_path):
+    """``atomic_paths`` names the target of a write the system refuses (ENOSPC, EFBIG, ...),
+    and lets any other error of its body (reading a source, say) through unchanged."""
+    import errno
+
+    from qdrefine.io import atomic_paths
+
+    target = tmp_path / "out.msh"
+    with pytest.raises(OSError) as info, atomic_paths([target]):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    assert str(info.value) == f"{target}: cannot write: No space left on device"
+    assert info.value.errno == errno.ENOSPC
+    with pytest.raises(OSError) as info, atomic_paths([target]):
+        raise OSError(errno.EIO, "Input/output error")
+    assert str(info.value) == "[Errno 5] Input/output error"
+    with pytest.raises(PermissionError), atomic_paths([target]):
+        raise PermissionError(errno.EACCES, "Permission denied", "/elsewhere/source.zarr")
+    assert list(tmp_path.iterdir()) == []

@@ -305,3 +305,49 @@ def test_temporaries_of_dead_runs_are_cleaned(tmp_path):
     assert sorted(Path(r).name for r in removed) == sorted(
         [f".m.zarr~{host}~{os.getpid()}~0a1b2c3d.tmp", f".m.zarr~elsewhere~{dead}~0a1b2c3d.tmp"])
     assert store.is_store(tmp_path / "m.zarr")
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_msh_export_of_many_tags_takes_two_passes(tmp_path, monkeypatch, binary):
+    """More tag values than writing.GROUPED_PASSES: one element block per tag in each chunk,
+    two passes over the store in all (not one per tag); qdrefine and the Gmsh SDK read
+    the file back (tags included); tags chunked unlike the triangles are read by rows."""
+    import gmsh
+
+    from qdrefine.io.gmsh import writing
+
+    mesh = jittered_grid(6, seed=4)
+    mesh = mesh.replace(cell_tags=np.arange(mesh.n_triangles) % 23 + 1)
+    s = store.create(tmp_path / "m.zarr", mesh, chunk_size=5)
+    z = zarr.open_group(str(tmp_path / "m.zarr"), mode="r+")  # tags in chunks of 3 rows
+    tags = z["cell_tags"][...]
+    del z["cell_tags"]
+    z.create_array("cell_tags", data=tags, chunks=(3,), dimension_names=["face"])
+    with warnings.catch_warnings():  # "consolidated metadata is not part of Zarr 3's spec"
+        warnings.simplefilter("ignore", UserWarning)
+        zarr.consolidate_metadata(str(tmp_path / "m.zarr"))
+    assert store.open(s.path).cell_tags.chunks[0][0] == 3
+    reads = []
+    original = export.rows
+
+    def counting(s_, array, step=None):
+        for start, rows in original(s_, array, step):
+            reads.append(array)
+            yield start, rows
+
+    monkeypatch.setattr(export, "rows", counting)
+    assert len(np.unique(tags)) > writing.GROUPED_PASSES
+    store.to_file(store.open(s.path), tmp_path / "m.msh", binary=binary)
+    monkeypatch.undo()
+    n_chunks = -(-mesh.n_triangles // 5)
+    assert reads.count("triangles") <= 2 * n_chunks + 2 * -(-len(mesh.edges) // 5)
+    same_mesh(mesh, qdrefine.read(tmp_path / "m.msh"))
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(str(tmp_path / "m.msh"))
+        types, elements, _ = gmsh.model.mesh.getElements(2)
+        assert sum(len(e) for e in elements) == mesh.n_triangles
+        assert len(gmsh.model.getEntities(2)) == len(np.unique(tags))
+    finally:
+        gmsh.finalize()

@@ -68,10 +68,11 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
         if not no.size:
             break
         split[no] = True
-        # the closure held before: only triangles around the new edges can break it
+        # the closure held before: only triangles around the new edges can break it, those
+        # whose longest edge is not split (the rounds count as when all were looked at)
         start, tris = around
         new = np.unique(np.concatenate([tris[start[e]:start[e + 1]] for e in no]))
-        rounds += 1 + _propagate(split, cedges, new, around)
+        rounds += 1 + _propagate(split, cedges, new[~split[cedges[new, 0]]], around)
         layers -= 1
         if layers > 0:
             reached = _touching(split, cedges)

@@ -105,6 +105,11 @@ def _run(found: Findings, out: Checked, points, triangles, cell_tags, edges, edg
         return
     out.points = p
     n = len(p)
+    for what, numbers, rows in (("point_numbers", found.point_numbers, n),
+                                ("triangle_numbers", found.triangle_numbers, len(t))):
+        if numbers is not None and len(numbers) != rows:
+            raise ValueError(f"{what} must give one number per row ({rows}), got "
+                             f"{len(numbers)}")
     if not cell_checks.in_range(found, t, n):
         return found.skip("orientation, topology and tags", "vertex indices out of range")
     t = out.triangles = np.array(t, dtype=index_dtype(n), order="C")
@@ -135,6 +140,10 @@ def _run(found: Findings, out: Checked, points, triangles, cell_tags, edges, edg
             boundary_checks.boundary(found, p, topo, oriented)
         else:
             found.skip("overlaps and hanging nodes", "triangles with zero area")
+    if found.edge_numbers is not None and np.ndim(edges) == 2 \
+            and len(found.edge_numbers) != len(edges):
+        raise ValueError(f"edge_numbers must give one number per tagged edge ({len(edges)}), "
+                         f"got {len(found.edge_numbers)}")
     out.cell_tags = cell_checks.cell_tags(found, cell_tags, len(t))
     out.edges, out.edge_tags = cell_checks.tagged_edges(found, edges, edge_tags, topo, n,
                                                         t.dtype)

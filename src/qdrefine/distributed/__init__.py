@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 from .. import store as mesh_store
 from ..arguments import as_count
 from ..interrupts import sigterm_as_interrupt
+from ..io import WRITE_ERRNOS
 from ..schemes import Scheme, get_scheme
 from .cluster import (
     PAUSE_TIMEOUT,
@@ -173,8 +174,7 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
                 copy_store(cl, src, out, _metadata(src, sch, 0), timeouts)
             mesh_store.remove(work)
     except OSError as exc:  # a full disk, a file size limit ... in a worker: name the store
-        if str(exc).startswith((url, src.path)) or isinstance(exc, (FileNotFoundError,
-                                                                     ClusterError)):
+        if exc.errno not in WRITE_ERRNOS or str(exc).startswith((url, src.path)):
             raise
         error = OSError(f"{url}: cannot write: {exc.strerror or exc}")
         error.errno = exc.errno

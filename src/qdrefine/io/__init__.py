@@ -57,11 +57,12 @@ from ..check import MIN_ANGLE, Checked, find
 from ..memory import check_needed, reading_needed_for_bytes
 from ..mesh import Mesh, _data, _names, _transitions
 from . import gmsh, obj, triangle, vtu, xdmf
-from ._core import RawMesh, atomic_path, atomic_paths, permission_bits
+from ._core import WRITE_ERRNOS, RawMesh, atomic_path, atomic_paths, permission_bits
 from .meshio_formats import read_with_meshio, write_with_meshio
 
 __all__ = ["read", "read_raw", "mesh_of", "check_file", "write", "FORMATS", "Format", "RawMesh",
-           "atomic_path", "atomic_paths", "permission_bits", "GMSH_VERSIONS"]
+           "atomic_path", "atomic_paths", "permission_bits", "GMSH_VERSIONS",
+           "WRITE_ERRNOS"]
 
 PathLike = str | os.PathLike
 
@@ -226,8 +227,8 @@ def read_raw(path: PathLike) -> RawMesh:
 
 
 #: Companion files read with a mesh file: XDMF's HDF5 data, Triangle's three files.
-_COMPANIONS = {".xdmf": (".h5",), ".node": (".ele", ".poly"), ".ele": (".node", ".poly"),
-               ".poly": (".node", ".ele")}
+_COMPANIONS = {".xdmf": (".h5",), ".xmf": (".h5",), ".node": (".ele", ".poly"),
+               ".ele": (".node", ".poly"), ".poly": (".node", ".ele")}
 
 
 def _bytes_of(path: Path) -> int:

@@ -4,6 +4,7 @@ conversion of cell blocks to triangles and tags, atomic writes and file checks."
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import stat
 import tempfile
@@ -120,10 +121,11 @@ def flat_points(raw: RawMesh, points: NDArray) -> None:
         bad = z != 0
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
+            number = int(raw.point_numbers[i]) if raw.point_numbers is not None else i + raw.base
             raw.flat = False
             raw.problem("not-flat", f"the mesh is not flat: {int(bad.sum())} of {len(points)} "
-                        f"points have z != 0 (first: point {i}, z = {z[i]!r}); qdrefine reads "
-                        "2D meshes, or 3D ones with z = 0", int(bad.sum()), point=i)
+                        f"points have z != 0 (first: point {number}, z = {z[i]!r}); qdrefine "
+                        "reads 2D meshes, or 3D ones with z = 0", int(bad.sum()), point=number)
         points = points[:, :2]
     raw.points = np.ascontiguousarray(points, dtype=np.float64)
 
@@ -144,9 +146,10 @@ def integer_tags(raw: RawMesh, tags: NDArray, what: str) -> NDArray[np.int64] | 
 
 
 def from_blocks(path: Path, points: NDArray, blocks: list[tuple[str, NDArray]],
-                tags: list[NDArray | None]) -> RawMesh:
+                tags: list[NDArray | None], point_numbers: NDArray | None = None) -> RawMesh:
     """A :class:`RawMesh` from points ``(N, 2|3)`` and cell blocks ``(type, (k, nodes))`` with
-    their tags (``None``: untagged); triangles keep the order of the blocks."""
+    their tags (``None``: untagged); triangles keep the order of the blocks.
+    ``point_numbers``: the file's own number of every point (for messages)."""
     tris, tri_tags, lines, line_tags = [], [], [], []
     others: dict[str, int] = {}
     for (kind, data), tag in zip(blocks, tags, strict=True):
@@ -159,7 +162,8 @@ def from_blocks(path: Path, points: NDArray, blocks: list[tuple[str, NDArray]],
                 line_tags.append(tag)
         elif kind != "vertex":
             others[kind] = others.get(kind, 0) + len(data)
-    raw = RawMesh(path, np.empty((0, 2)), np.empty((0, 3), dtype=np.int64))
+    raw = RawMesh(path, np.empty((0, 2)), np.empty((0, 3), dtype=np.int64),
+                  point_numbers=point_numbers)
     flat_points(raw, points)
     if others:
         what = ", ".join(f"{n} {t}" for t, n in others.items())
@@ -223,6 +227,11 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
         yield tmp
 
 
+#: System errors of a write that the disk or the system refuses (full disk, quota, file size
+#: limit, read-only filesystem): reported as "FILE: cannot write: REASON".
+WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})
+
+
 @contextlib.contextmanager
 def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
     """:func:`atomic_path` for a set of files written together (Triangle's three files, XDMF
@@ -250,11 +259,12 @@ def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
             for tmp, path in zip(temps, targets, strict=True):
                 os.replace(tmp, path)
         except OSError as exc:  # a full disk, a file size limit ...: name the file
-            if str(exc).startswith(tuple(str(p) for p in targets)):
-                raise
             named = next((p for t, p in zip(temps, targets, strict=True)
-                          if exc.filename is not None and str(t) == str(exc.filename)),
-                         targets[0])
+                          if exc.filename is not None and str(t) == str(exc.filename)), None)
+            if str(exc).startswith(tuple(str(p) for p in targets)) or (
+                    named is None and exc.errno not in WRITE_ERRNOS):
+                raise  # named already, or not a write of ours (e.g. reading a source)
+            named = named or targets[0]
             error = OSError(f"{named}: cannot write: {exc.strerror or exc}")
             error.errno = exc.errno
             raise error from None

@@ -12,8 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..io import FORMATS, GMSH_VERSIONS, read, triangle, write
-from ..io._core import atomic_paths
+from ..io import FORMATS, GMSH_VERSIONS, atomic_paths, read, triangle, write
 from ..io.gmsh import writing as gmsh_writing
 from ..mesh import Mesh
 from .layout import (
@@ -119,12 +118,18 @@ def to_file(store: MeshStore | PathLike, mesh_path: PathLike, *,
 
 
 def _chunks(s: MeshStore) -> gmsh_writing.Chunks:
-    """The store as :class:`qdrefine.io.gmsh.writing.Chunks` (its own chunks)."""
+    """The store as :class:`qdrefine.io.gmsh.writing.Chunks` (its own chunks; tags read by
+    rows, however they are chunked)."""
     def of(name: str):
         return None if getattr(s, name) is None else (lambda: rows(s, name))
 
+    def tags(name: str):
+        return None if getattr(s, name) is None else (
+            lambda a, b: rows_between(s, name, a, b))
+
     return gmsh_writing.Chunks(s.n_points, s.n_triangles, s.n_edges, of("points"),
-                               of("triangles"), of("cell_tags"), of("edges"), of("edge_tags"))
+                               of("triangles"), tags("cell_tags"), of("edges"),
+                               tags("edge_tags"))
 
 
 def any_zero(s: MeshStore, name: str) -> bool:

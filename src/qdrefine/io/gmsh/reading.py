@@ -625,10 +625,10 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
             tri_ids = ids
         elif name == "line":
             line_ids, line_tags = ids, tg
-    raw = from_blocks(f.path, c.points, merged, merged_tags)
-    raw.physical_names = dict(c.names)
     # messages name points and triangles by the file's node and element tags
-    raw.point_numbers = np.asarray(tags, dtype=np.int64)
+    raw = from_blocks(f.path, c.points, merged, merged_tags,
+                      point_numbers=np.asarray(tags, dtype=np.int64))
+    raw.physical_names = dict(c.names)
     if len(tri_ids) == len(raw.triangles):
         raw.triangle_numbers = np.asarray(tri_ids, dtype=np.int64)
     kept_lines = line_ids[np.asarray(line_tags) != 0]  # the lines that are tagged edges

@@ -14,7 +14,12 @@ from .._core import atomic_path, mesh_data
 from .._text import format_floats, int_lines
 from .common import EXACT_INT, VERSIONS
 
-__all__ = ["write", "write_chunks", "Chunks"]
+__all__ = ["write", "write_chunks", "Chunks", "GROUPED_PASSES"]
+
+#: Up to this many tag values, a chunked mesh is written with one element block per tag
+#: (one pass over its chunks per tag, the layout of :func:`write`); beyond, one block per
+#: tag in each chunk (two passes in all).
+GROUPED_PASSES = 8
 
 
 class Chunks:
@@ -22,9 +27,9 @@ class Chunks:
 
     ``points()``, ``triangles()`` and ``edges()`` each return a new iterator of
     ``(first row, rows)`` (``(k, 2)`` float64 points; ``(k, 3)`` / ``(k, 2)`` 0-based
-    cells), ``cell_tags()`` and ``edge_tags()`` of ``(first row, tags)`` (``None``: no such
-    array). Every iterator may be asked for again (MSH 4.1 groups elements by tag, one pass
-    per tag value).
+    cells); every iterator may be asked for again (MSH 4.1 groups elements by tag).
+    ``cell_tags(start, stop)`` and ``edge_tags(start, stop)`` return the tags of those rows
+    (``None``: no tags), whatever the chunks of the tags.
     """
 
     def __init__(self, n_points: int, n_triangles: int, n_edges: int, points, triangles,
@@ -37,39 +42,57 @@ class Chunks:
         """``(first row, cells, tags)`` of ``"triangles"`` or ``"edges"`` (tags 0 where
         there are none)."""
         cells = self.triangles() if kind == "triangles" else self.edges()
-        tags = (self.cell_tags if kind == "triangles" else self.edge_tags)
-        tags = tags() if tags is not None else None
+        tags = self.cell_tags if kind == "triangles" else self.edge_tags
         for start, rows in cells:
             if tags is None:
                 yield start, rows, np.zeros(len(rows), np.int64)
             else:
-                at, values = next(tags)
-                if at != start or len(values) != len(rows):
-                    raise ValueError(f"the tags of {kind} are chunked unlike the {kind}")
-                yield start, rows, np.asarray(values, np.int64)
+                yield start, rows, np.asarray(tags(start, start + len(rows)), np.int64)
 
-    def groups(self, kind: str) -> list[tuple[int, int, Callable[[], Iterator]]]:
-        """``(tag value, count, blocks)`` per distinct tag in increasing order; ``blocks()``
-        yields ``(rows, cells)`` of that tag in row order, chunk by chunk."""
+    def groups(self, kind: str) -> tuple[list[int], int, Callable[[], Iterator]]:
+        """The element blocks of MSH 4.1: ``(tags, n_blocks, blocks)``, the distinct tag
+        values in increasing order (entity ``i + 1`` holds ``tags[i]``), the number of
+        blocks, and ``blocks()`` yielding ``(entity, count, pieces)`` with ``pieces`` the
+        ``(rows, cells)`` of the block in row order. Up to :data:`GROUPED_PASSES` tag values:
+        one block per tag (one pass over the chunks per tag, as :func:`write` lays the file
+        out); beyond: one block per tag in each chunk (two passes in all, whatever the
+        number of tags)."""
         count = self.n_triangles if kind == "triangles" else self.n_edges
         if not count:
-            return []
+            return [], 0, lambda: iter(())
         if (self.cell_tags if kind == "triangles" else self.edge_tags) is None:
-            return [(0, count, lambda: ((start + np.arange(len(c)), c)
-                                        for start, c, _ in self.cells(kind)))]
+            return [0], 1, lambda: iter([(1, count, ((start + np.arange(len(c)), c)
+                                                     for start, c, _ in self.cells(kind)))])
         totals: dict[int, int] = {}
+        n_blocks = 0
         for _, _, tags in self.cells(kind):
             values, counts = np.unique(tags, return_counts=True)
+            n_blocks += len(values)
             for v, c in zip(values.tolist(), counts.tolist(), strict=True):
                 totals[v] = totals.get(v, 0) + c
+        values = sorted(totals)
+        entity = {v: i + 1 for i, v in enumerate(values)}
+        if len(values) <= GROUPED_PASSES:
+            def of_tag(value: int) -> Iterator[tuple[NDArray, NDArray]]:
+                for start, c, tags in self.cells(kind):
+                    sel = np.flatnonzero(tags == value)
+                    if len(sel):
+                        yield start + sel, c[sel]
 
-        def blocks(value: int) -> Iterator[tuple[NDArray, NDArray]]:
+            return values, len(values), lambda: ((entity[v], totals[v], of_tag(v))
+                                                 for v in values)
+
+        def per_chunk() -> Iterator[tuple[int, int, list]]:
             for start, c, tags in self.cells(kind):
-                sel = np.flatnonzero(tags == value)
-                if len(sel):
-                    yield start + sel, c[sel]
+                order = np.argsort(tags, kind="stable")
+                present, first = np.unique(tags[order], return_index=True)
+                ends = np.append(first[1:], len(tags))
+                for v, a, b in zip(present.tolist(), first.tolist(), ends.tolist(),
+                                   strict=True):
+                    rows = order[a:b]
+                    yield entity[v], b - a, [(start + rows, c[rows])]
 
-        return [(v, totals[v], (lambda v=v: blocks(v))) for v in sorted(totals)]
+        return values, n_blocks, per_chunk
 
 
 class _InMemory(Chunks):
@@ -81,31 +104,31 @@ class _InMemory(Chunks):
             mesh.n_points, mesh.n_triangles, k,
             lambda: iter([(0, np.asarray(mesh.points))]),
             lambda: iter([(0, np.asarray(mesh.triangles))]),
-            None if mesh.cell_tags is None else lambda: iter([(0, mesh.cell_tags)]),
+            None if mesh.cell_tags is None else lambda a, b: mesh.cell_tags[a:b],
             (lambda: iter([(0, np.asarray(mesh.edges))])) if k else None,
-            (lambda: iter([(0, mesh.edge_tags)])) if k else None)
+            (lambda a, b: mesh.edge_tags[a:b]) if k else None)
         self.mesh = mesh
 
-    def groups(self, kind: str) -> list[tuple[int, int, Callable[[], Iterator]]]:
+    def groups(self, kind: str) -> tuple[list[int], int, Callable[[], Iterator]]:
         if kind == "triangles":
             tags, cells, n = self.mesh.cell_tags, self.mesh.triangles, self.n_triangles
         else:
             tags, cells, n = self.mesh.edge_tags, self.mesh.edges, self.n_edges
         if not n:
-            return []
+            return [], 0, lambda: iter(())
         cells = np.asarray(cells)
+        everything = (np.arange(n, dtype=np.int64), cells)
         if tags is None:
-            return [(0, n, lambda: iter([(np.arange(n, dtype=np.int64), cells)]))]
+            return [0], 1, lambda: iter([(1, n, iter([everything]))])
         order = np.argsort(tags, kind="stable")
         values, starts = np.unique(np.asarray(tags)[order], return_index=True)
         ends = np.append(starts[1:], n)
-        out = []
-        for v, s, e in zip(values.tolist(), starts.tolist(), ends.tolist(), strict=True):
+        blocks = []
+        for i, (s, e) in enumerate(zip(starts.tolist(), ends.tolist(), strict=True)):
             rows = order[s:e]
-            whole = e - s == n  # one tag: all rows in order, no gather
-            out.append((v, e - s, (lambda r=rows, w=whole: iter(
-                [(np.arange(n, dtype=np.int64), cells) if w else (r, cells[r])]))))
-        return out
+            piece = everything if e - s == n else (rows, cells[rows])  # one tag: no gather
+            blocks.append((i + 1, e - s, [piece]))
+        return values.tolist(), len(blocks), lambda: iter(blocks)
 
 
 def write(path: Path, mesh, *, binary: bool = False, version: str = "4.1") -> None:
@@ -164,15 +187,15 @@ def _bounding_box(source: Chunks) -> list[float]:
 
 def _write41(out, source: Chunks, binary: bool) -> None:
     n, m, k = source.n_points, source.n_triangles, source.n_edges
-    surfaces = source.groups("triangles")
-    curves = source.groups("edges")
+    surface_tags, n_surface_blocks, surface_blocks = source.groups("triangles")
+    curve_tags, n_curve_blocks, curve_blocks = source.groups("edges")
     box = _bounding_box(source)
     # entities: one curve per edge tag, one surface per cell tag (physical tag = the tag)
     out.write(b"$Entities\n")
     if binary:
-        out.write(np.array([0, len(curves), len(surfaces), 0], np.uint64).tobytes())
-        for groups in (curves, surfaces):
-            for i, (tag, _, _) in enumerate(groups):
+        out.write(np.array([0, len(curve_tags), len(surface_tags), 0], np.uint64).tobytes())
+        for tags in (curve_tags, surface_tags):
+            for i, tag in enumerate(tags):
                 phys = [tag]
                 out.write(np.array([i + 1], np.int32).tobytes() + np.array(box).tobytes()
                           + np.array([len(phys)], np.uint64).tobytes()
@@ -180,10 +203,10 @@ def _write41(out, source: Chunks, binary: bool) -> None:
                           + np.array([0], np.uint64).tobytes())
         out.write(b"\n")
     else:
-        out.write(f"0 {len(curves)} {len(surfaces)} 0\n".encode())
+        out.write(f"0 {len(curve_tags)} {len(surface_tags)} 0\n".encode())
         bbox = " ".join(repr(float(x)) for x in box)
-        for groups in (curves, surfaces):
-            for i, (tag, _, _) in enumerate(groups):
+        for tags in (curve_tags, surface_tags):
+            for i, tag in enumerate(tags):
                 out.write(f"{i + 1} {bbox} 1 {tag} 0\n".encode())
     out.write(b"$EndEntities\n$Nodes\n")
     if binary:
@@ -205,26 +228,26 @@ def _write41(out, source: Chunks, binary: bool) -> None:
             for piece in format_floats(p, " 0"):
                 out.write(piece)
     out.write(b"$EndNodes\n$Elements\n")
-    blocks = [(2, i + 1, 2, count, 0, rows) for i, (_, count, rows) in enumerate(surfaces)]
-    blocks += [(1, i + 1, 1, count, m, rows) for i, (_, count, rows) in enumerate(curves)]
     total = m + k
+    n_blocks = n_surface_blocks + n_curve_blocks
     if binary:
-        out.write(np.array([len(blocks), total, 1, total], np.uint64).tobytes())
+        out.write(np.array([n_blocks, total, 1, total], np.uint64).tobytes())
     else:
-        out.write(f"{len(blocks)} {total} 1 {total}\n".encode())
-    for dim, ent, typ, count, first, pieces in blocks:
-        if binary:
-            out.write(np.array([dim, ent, typ], np.int32).tobytes()
-                      + np.array([count], np.uint64).tobytes())
-        else:
-            out.write(f"{dim} {ent} {typ} {count}\n".encode())
-        for rows, cells in pieces():
-            block = _element_rows(rows, first, cells)
+        out.write(f"{n_blocks} {total} 1 {total}\n".encode())
+    for dim, typ, first, blocks in ((2, 2, 0, surface_blocks), (1, 1, m, curve_blocks)):
+        for ent, count, pieces in blocks():
             if binary:
-                out.write(memoryview(block.view(np.uint64).reshape(-1)))
+                out.write(np.array([dim, ent, typ], np.int32).tobytes()
+                          + np.array([count], np.uint64).tobytes())
             else:
-                for piece in int_lines(block):
-                    out.write(piece)
+                out.write(f"{dim} {ent} {typ} {count}\n".encode())
+            for rows, cells in pieces:
+                block = _element_rows(rows, first, cells)
+                if binary:
+                    out.write(memoryview(block.view(np.uint64).reshape(-1)))
+                else:
+                    for piece in int_lines(block):
+                        out.write(piece)
     out.write(b"\n$EndElements\n" if binary else b"$EndElements\n")
 
 
