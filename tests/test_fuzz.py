@@ -21,7 +21,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import qdrefine
@@ -156,8 +156,23 @@ def _names_file(message: str, path: Path) -> bool:
 
 # readers -----------------------------------------------------------------------------------
 
+def _damaged(seed: str, name: str, ops) -> tuple[str, dict[str, bytes]]:
+    files = dict(SEEDS[seed])
+    files[name] = mutate(files[name], ops)
+    return MAIN[seed], files
+
+
 @FUZZ
 @given(mutated_files())
+# a damaged HDF5 file beside a stamped XDMF file (the long fuzzing run of 2026-11-26 found
+# these three tracebacks in the set-stamp check)
+@example(_damaged("xdmf", "m.h5", [("insert", 365750841, 41, b"inf")]))
+@example(_damaged("xdmf", "m.h5", [("delete-line", 1770643436, 246, b"3"),
+                                   ("token", 453441746, 194, b"4294967296"),
+                                   ("duplicate-line", 876567150, 17, b"1.5")]))
+@example(_damaged("xdmf", "m.h5", [("token", 679292338, 18, b"99999999"),
+                                   ("flip", 1534469675, 117, b"4294967296"),
+                                   ("duplicate-line", 2012030906, 28, b"0")]))
 def test_readers_on_mutated_files(case):
     main_name, files = case
     with tempfile.TemporaryDirectory() as tmp:

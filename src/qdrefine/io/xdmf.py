@@ -56,7 +56,7 @@ def _check_set(path: Path) -> None:
 
         with h5py.File(h5_path, "r") as h5:
             theirs = h5.attrs.get("qdrefine_set")
-    except (OSError, ValueError):
+    except Exception:  # noqa: BLE001 - a damaged HDF5 file: the reader says what is wrong
         return
     ours = found.group(1).decode()
     if theirs is not None and str(theirs) != ours:
