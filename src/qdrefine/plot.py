@@ -37,8 +37,10 @@ COLORS = ("min-angle", "tag", "none")
 PALETTE = ("#E69F00", "#56B4E9", "#009E73", "#F0E442", "#0072B2", "#D55E00", "#CC79A7",
            "#000000")
 #: Line styles of edge tags and compared schemes: told apart without colour.
-LINE_STYLES = ("solid", "dashed", "dotted", "dashdot", (0, (5, 1, 1, 1, 1, 1)),
-               (0, (1, 3)))
+#: Dash lengths are in line widths and short, so that they show on the short segments of
+#: tagged edges too: solid, dashed, dotted, dash-dot, sparse dots, long dashes.
+LINE_STYLES = ("solid", (0, (2.0, 1.2)), (0, (0.6, 1.2)), (0, (3.0, 1.2, 0.6, 1.2)),
+               (0, (0.6, 3.0)), (0, (5.0, 2.0)))
 #: Markers of compared schemes (drawn hollow and smaller one after the other, so that lines
 #: on top of each other stay visible).
 MARKERS = ("o", "s", "D", "^", "v", "<", ">")
