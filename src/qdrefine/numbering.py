@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from .jit import AHEAD, prefetch, prefetch_write, threads_for, unsigned
 
 __all__ = ["EdgeBuckets", "sort_edges", "number_edges", "bucket_points", "edge_point", "edge_ids",
-           "index_dtype"]
+           "index_dtype", "incidence"]
 
 
 def index_dtype(n_points: int) -> type[np.integer]:
@@ -331,3 +331,28 @@ def edge_ids(mesh_edges: NDArray, query: NDArray, n: int) -> NDArray[np.int64]:
     pos = np.minimum(pos, len(key) - 1)
     found = key[pos] == q
     return np.where(found, pos, -1)
+
+
+def incidence(table: NDArray[np.integer], n: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The rows of ``table (M, 3)`` that hold each id ``0 .. n - 1`` (vertices, edges ...):
+    ``rows[start[i]:start[i + 1]]`` in increasing order (CSR, ``(n + 1,)`` and ``(3M,)``
+    int64), by one counting sort."""
+    start = np.zeros(n + 1, dtype=np.int64)
+    rows = np.empty(3 * table.shape[0], dtype=np.int64)
+    _incidence(table, n, start, rows)
+    return start, rows
+
+
+@njit(cache=True)
+def _incidence(table, n, start, rows):
+    for t in range(table.shape[0]):
+        for j in range(3):
+            start[table[t, j] + 1] += 1
+    for v in range(n):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    for t in range(table.shape[0]):
+        for j in range(3):
+            v = table[t, j]
+            rows[fill[v]] = t
+            fill[v] += 1

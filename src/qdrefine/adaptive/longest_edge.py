@@ -9,6 +9,7 @@ from numba import njit, prange
 from numpy.typing import NDArray
 
 from ..jit import threads_for
+from ..numbering import incidence
 from .labels import MN, OM
 
 
@@ -150,25 +151,7 @@ def edge_triangles(cedges: NDArray[np.int64], n_edges: int) -> tuple[NDArray[np.
                                                                        NDArray[np.int64]]:
     """The triangles around every edge: ``tris[start[e]:start[e + 1]]`` (CSR, ``(E + 1,)``
     and ``(3M,)`` int64), in triangle order."""
-    return _edge_triangles(cedges, n_edges)
-
-
-@njit(cache=True)
-def _edge_triangles(cedges, n_edges):
-    start = np.zeros(n_edges + 1, dtype=np.int64)
-    for t in range(cedges.shape[0]):
-        for i in range(3):
-            start[cedges[t, i] + 1] += 1
-    for e in range(n_edges):
-        start[e + 1] += start[e]
-    fill = start[:-1].copy()
-    tris = np.empty(start[n_edges], dtype=np.int64)
-    for t in range(cedges.shape[0]):
-        for i in range(3):
-            e = cedges[t, i]
-            tris[fill[e]] = t
-            fill[e] += 1
-    return start, tris
+    return incidence(cedges, n_edges)
 
 
 @njit(cache=True)

@@ -17,6 +17,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from ..mesh import Mesh, index_dtype
+from ..numbering import incidence
 from ..schemes import Scheme
 from .edgekeys import KEY, edge_keys, lookup
 from .families import Families
@@ -52,28 +53,10 @@ def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.
         window |= _grown(mesh.triangles, start, tris_of, rim, 2)
 
 
-@njit(cache=True)
-def _vertex_triangles(triangles, n_points, start, out):
-    for t in range(triangles.shape[0]):
-        for j in range(3):
-            start[triangles[t, j] + 1] += 1
-    for v in range(n_points):
-        start[v + 1] += start[v]
-    fill = start[:-1].copy()
-    for t in range(triangles.shape[0]):
-        for j in range(3):
-            v = triangles[t, j]
-            out[fill[v]] = t
-            fill[v] += 1
-
-
 def vertex_triangles(triangles: NDArray, n_points: int
                      ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Triangles around each vertex: ``tris_of[start[v]:start[v + 1]]`` (increasing)."""
-    start = np.zeros(n_points + 1, dtype=np.int64)
-    out = np.empty(3 * triangles.shape[0], dtype=np.int64)
-    _vertex_triangles(triangles, n_points, start, out)
-    return start, out
+    return incidence(triangles, n_points)
 
 
 @njit(cache=True)
