@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 from .. import store as mesh_store
 from ..arguments import as_count
 from ..interrupts import sigterm_as_interrupt
-from ..io import WRITE_ERRNOS
+from ..io import WRITE_ERRNOS, cannot_write
 from ..schemes import Scheme, get_scheme
 from .cluster import (
     PAUSE_TIMEOUT,
@@ -176,9 +176,7 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
     except OSError as exc:  # a full disk, a file size limit ... in a worker: name the store
         if exc.errno not in WRITE_ERRNOS or str(exc).startswith((url, src.path)):
             raise
-        error = OSError(f"{url}: cannot write: {exc.strerror or exc}")
-        error.errno = exc.errno
-        raise error from None
+        raise cannot_write(url, exc.strerror or str(exc), exc.errno) from None
     result = mesh_store.open(url)
     report.done(f"wrote {url}")
     return RefineSummary(url, sch.name, levels, result.n_points, result.n_triangles,

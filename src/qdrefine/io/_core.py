@@ -232,6 +232,14 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
 WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})
 
 
+def cannot_write(path: PathLike, reason: str, number: int | None) -> OSError:
+    """The one-line error of a refused write: ``"PATH: cannot write: REASON"``, with the
+    system's error ``number`` kept as ``errno``."""
+    error = OSError(f"{path}: cannot write: {reason}")
+    error.errno = number
+    return error
+
+
 @contextlib.contextmanager
 def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
     """:func:`atomic_path` for a set of files written together (Triangle's three files, XDMF
@@ -250,7 +258,7 @@ def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
                 fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.",
                                            suffix=f".tmp{path.suffix}", dir=path.parent)
             except OSError as exc:
-                raise OSError(f"{path}: cannot write: {exc.strerror or exc}") from None
+                raise cannot_write(path, exc.strerror or str(exc), exc.errno) from None
             os.close(fd)
             temps.append(Path(tmp))
             os.chmod(tmp, permission_bits(path))
@@ -264,10 +272,8 @@ def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
             if str(exc).startswith(tuple(str(p) for p in targets)) or (
                     named is None and exc.errno not in WRITE_ERRNOS):
                 raise  # named already, or not a write of ours (e.g. reading a source)
-            named = named or targets[0]
-            error = OSError(f"{named}: cannot write: {exc.strerror or exc}")
-            error.errno = exc.errno
-            raise error from None
+            raise cannot_write(named or targets[0], exc.strerror or str(exc),
+                               exc.errno) from None
     except BaseException:
         for tmp in temps:
             with contextlib.suppress(OSError):

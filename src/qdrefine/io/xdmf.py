@@ -22,7 +22,7 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 
-from ._core import RawMesh, atomic_paths, mesh_data
+from ._core import RawMesh, atomic_paths, cannot_write, mesh_data
 
 __all__ = ["read", "write"]
 
@@ -71,9 +71,7 @@ def _write_error(path: Path, exc: BaseException) -> OSError:
     found = re.search(r"errno = (\d+)", str(exc))
     number = getattr(exc, "errno", None) or (int(found.group(1)) if found else None)
     reason = os.strerror(number) if number else str(exc).split("(")[0].strip()
-    error = OSError(f"{path}: cannot write: {reason}")
-    error.errno = number if number else errno.EIO
-    return error
+    return cannot_write(path, reason, number if number else errno.EIO)
 
 
 def _digest(xml: str, arrays: list[np.ndarray]) -> str:
