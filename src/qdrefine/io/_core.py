@@ -227,6 +227,49 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
         yield tmp
 
 
+class MeshChunks:
+    """A mesh given chunk by chunk (e.g. a Zarr store), for the writers that stream it
+    (:func:`qdrefine.io.gmsh.writing.write_chunks`, :func:`qdrefine.io.triangle.write_chunks`);
+    :meth:`of_mesh` makes a whole mesh one chunk.
+
+    ``points()``, ``triangles()`` and ``edges()`` each return a new iterator of
+    ``(first row, rows)`` (``(k, 2)`` float64 points; ``(k, 3)`` / ``(k, 2)`` 0-based
+    cells); every iterator may be asked for again (MSH 4.1 groups elements by tag).
+    ``cell_tags(start, stop)`` and ``edge_tags(start, stop)`` return the tags of those rows
+    (``None``: no tags), whatever the chunks of the tags.
+    """
+
+    def __init__(self, n_points: int, n_triangles: int, n_edges: int, points, triangles,
+                 cell_tags=None, edges=None, edge_tags=None) -> None:
+        self.n_points, self.n_triangles, self.n_edges = n_points, n_triangles, n_edges
+        self.points, self.triangles, self.edges = points, triangles, edges
+        self.cell_tags, self.edge_tags = cell_tags, edge_tags
+
+    @classmethod
+    def of_mesh(cls, mesh):
+        """``mesh`` as one chunk (``.mesh`` keeps it)."""
+        k = 0 if mesh.edges is None else len(mesh.edges)
+        out = cls(mesh.n_points, mesh.n_triangles, k,
+                  lambda: iter([(0, np.asarray(mesh.points))]),
+                  lambda: iter([(0, np.asarray(mesh.triangles))]),
+                  None if mesh.cell_tags is None else lambda a, b: mesh.cell_tags[a:b],
+                  (lambda: iter([(0, np.asarray(mesh.edges))])) if k else None,
+                  (lambda a, b: mesh.edge_tags[a:b]) if k else None)
+        out.mesh = mesh
+        return out
+
+    def cells(self, kind: str) -> Iterator[tuple[int, NDArray, NDArray]]:
+        """``(first row, cells, tags)`` of ``"triangles"`` or ``"edges"`` (tags 0 where
+        there are none)."""
+        cells = self.triangles() if kind == "triangles" else self.edges()
+        tags = self.cell_tags if kind == "triangles" else self.edge_tags
+        for start, rows in cells:
+            if tags is None:
+                yield start, rows, np.zeros(len(rows), np.int64)
+            else:
+                yield start, rows, np.asarray(tags(start, start + len(rows)), np.int64)
+
+
 #: System errors of a write that the disk or the system refuses (full disk, quota, file size
 #: limit, read-only filesystem): reported as "FILE: cannot write: REASON".
 WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})

@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ._core import RawMesh, atomic_paths, read_bytes
+from ._core import MeshChunks, RawMesh, atomic_paths, read_bytes
 
-__all__ = ["read", "write", "base_of", "Stamping", "SET_STAMP"]
+__all__ = ["read", "write", "write_chunks", "base_of", "Stamping", "SET_STAMP"]
 
 #: The comment that ends every file of a set written by qdrefine (then the digest).
 SET_STAMP = "# qdrefine set "
@@ -244,31 +244,35 @@ def _read_poly(poly: _Lines, raw: RawMesh) -> None:
 
 def write(path: Path, mesh, *, binary: bool = False) -> None:  # noqa: ARG001
     """Write ``name.node``, ``name.ele`` and ``name.poly`` as one set."""
+    write_chunks(path, MeshChunks.of_mesh(mesh))
+
+
+def write_chunks(path: Path, source: MeshChunks) -> None:
+    """Write a mesh given chunk by chunk as Triangle's three files, one set (the same bytes
+    as :func:`write` of the whole mesh)."""
     base = base_of(path)
-    n, m = mesh.n_points, mesh.n_triangles
     targets = [base.with_suffix(s) for s in (".node", ".ele", ".poly")]
     stamping = Stamping()
     with atomic_paths(targets) as (node, ele, poly):
         with open(node, "w") as f:
             f = stamping.wrap(f)
-            f.write(f"# written by qdrefine\n{n} 2 0 0\n")
-            np.savetxt(f, np.column_stack([np.arange(n), mesh.points]), fmt="%d %.17g %.17g")
+            f.write(f"# written by qdrefine\n{source.n_points} 2 0 0\n")
+            for start, p in source.points():
+                np.savetxt(f, np.column_stack([np.arange(start, start + len(p)), p]),
+                           fmt="%d %.17g %.17g")
         with open(ele, "w") as f:
             f = stamping.wrap(f)
-            t = np.asarray(mesh.triangles, dtype=np.int64)
-            if mesh.cell_tags is None:
-                f.write(f"{m} 3 0\n")
-                np.savetxt(f, np.column_stack([np.arange(m), t]), fmt="%d")
-            else:
-                f.write(f"{m} 3 1\n")
-                np.savetxt(f, np.column_stack([np.arange(m), t, mesh.cell_tags]), fmt="%d")
+            tagged = source.cell_tags is not None
+            f.write(f"{source.n_triangles} 3 {int(tagged)}\n")
+            for start, t, tags in source.cells("triangles"):
+                cols = [np.arange(start, start + len(t)), np.asarray(t, dtype=np.int64)]
+                np.savetxt(f, np.column_stack(cols + [tags] if tagged else cols), fmt="%d")
         with open(poly, "w") as f:
             f = stamping.wrap(f)
-            f.write("# vertices are in the .node file\n0 2 0 0\n")
-            k = 0 if mesh.edges is None else len(mesh.edges)
-            f.write(f"{k} 1\n")
-            if k:
-                np.savetxt(f, np.column_stack([np.arange(k), mesh.edges, mesh.edge_tags]),
-                           fmt="%d")
+            f.write(f"# vertices are in the .node file\n0 2 0 0\n{source.n_edges} 1\n")
+            if source.n_edges:
+                for start, e, tags in source.cells("edges"):
+                    np.savetxt(f, np.column_stack([np.arange(start, start + len(e)), e, tags]),
+                               fmt="%d")
             f.write("0\n")
         stamping.finish([node, ele, poly])

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..io import FORMATS, GMSH_VERSIONS, atomic_paths, read, triangle, write
+from ..io import FORMATS, GMSH_VERSIONS, read, triangle, write
 from ..io.gmsh import writing as gmsh_writing
 from ..mesh import Mesh
 from .layout import (
@@ -114,7 +114,7 @@ def to_file(store: MeshStore | PathLike, mesh_path: PathLike, *,
         gmsh_writing.write_chunks(mesh_path, _chunks(s), binary=bool(binary),
                                   version=format_version or GMSH_VERSIONS[0])
     else:
-        write_triangle(s, mesh_path)
+        triangle.write_chunks(mesh_path, _chunks(s))
 
 
 def _chunks(s: MeshStore) -> gmsh_writing.Chunks:
@@ -148,41 +148,3 @@ def rows_between(s: MeshStore, name: str, start: int, stop: int) -> NDArray:
     return s.zarr_array(name)[start:stop]
 
 
-def cell_tags_between(s: MeshStore, start: int, stop: int) -> NDArray:
-    if s.cell_tags is None:
-        return np.zeros(stop - start, dtype=np.int64)
-    return rows_between(s, "cell_tags", start, stop)
-
-
-def write_triangle(s: MeshStore, path: Path) -> None:
-    """Triangle's three files, chunk by chunk, written as one set with the set stamp of
-    :mod:`qdrefine.io.triangle` (the same bytes as :func:`qdrefine.write`)."""
-    base = path.with_suffix("")
-    stamping = triangle.Stamping()
-    targets = [base.with_suffix(e) for e in (".node", ".ele", ".poly")]
-    with atomic_paths(targets) as (node, ele, poly):
-        with node.open("w") as f:
-            f = stamping.wrap(f)
-            f.write(f"# written by qdrefine\n{s.n_points} 2 0 0\n")
-            for start, p in rows(s, "points"):
-                ids = np.arange(start, start + len(p))
-                np.savetxt(f, np.column_stack([ids, p]), fmt="%d %.17g %.17g")
-        with ele.open("w") as f:
-            f = stamping.wrap(f)
-            tagged = s.cell_tags is not None
-            f.write(f"{s.n_triangles} 3 {int(tagged)}\n")
-            for start, t in rows(s, "triangles"):
-                cols = [np.arange(start, start + len(t)), t]
-                if tagged:
-                    cols.append(cell_tags_between(s, start, start + len(t)))
-                np.savetxt(f, np.column_stack(cols), fmt="%d")
-        with poly.open("w") as f:
-            f = stamping.wrap(f)
-            f.write(f"# vertices are in the .node file\n0 2 0 0\n{s.n_edges} 1\n")
-            if s.edges is not None:
-                for start, e in rows(s, "edges"):
-                    tag = rows_between(s, "edge_tags", start, start + len(e))
-                    np.savetxt(f, np.column_stack([np.arange(start, start + len(e)), e, tag]),
-                               fmt="%d")
-            f.write("0\n")
-        stamping.finish([node, ele, poly])

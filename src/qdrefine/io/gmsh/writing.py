@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from .._core import atomic_path, mesh_data
+from .._core import MeshChunks, atomic_path, mesh_data
 from .._text import format_floats, int_lines
 from .common import EXACT_INT, VERSIONS
 
@@ -22,32 +22,8 @@ __all__ = ["write", "write_chunks", "Chunks", "GROUPED_PASSES"]
 GROUPED_PASSES = 8
 
 
-class Chunks:
-    """A mesh given chunk by chunk (e.g. a Zarr store), for :func:`write_chunks`.
-
-    ``points()``, ``triangles()`` and ``edges()`` each return a new iterator of
-    ``(first row, rows)`` (``(k, 2)`` float64 points; ``(k, 3)`` / ``(k, 2)`` 0-based
-    cells); every iterator may be asked for again (MSH 4.1 groups elements by tag).
-    ``cell_tags(start, stop)`` and ``edge_tags(start, stop)`` return the tags of those rows
-    (``None``: no tags), whatever the chunks of the tags.
-    """
-
-    def __init__(self, n_points: int, n_triangles: int, n_edges: int, points, triangles,
-                 cell_tags=None, edges=None, edge_tags=None) -> None:
-        self.n_points, self.n_triangles, self.n_edges = n_points, n_triangles, n_edges
-        self.points, self.triangles, self.edges = points, triangles, edges
-        self.cell_tags, self.edge_tags = cell_tags, edge_tags
-
-    def cells(self, kind: str) -> Iterator[tuple[int, NDArray, NDArray]]:
-        """``(first row, cells, tags)`` of ``"triangles"`` or ``"edges"`` (tags 0 where
-        there are none)."""
-        cells = self.triangles() if kind == "triangles" else self.edges()
-        tags = self.cell_tags if kind == "triangles" else self.edge_tags
-        for start, rows in cells:
-            if tags is None:
-                yield start, rows, np.zeros(len(rows), np.int64)
-            else:
-                yield start, rows, np.asarray(tags(start, start + len(rows)), np.int64)
+class Chunks(MeshChunks):
+    """:class:`~qdrefine.io._core.MeshChunks` with the element blocks of MSH 4.1."""
 
     def groups(self, kind: str) -> tuple[list[int], int, Callable[[], Iterator]]:
         """The element blocks of MSH 4.1: ``(tags, n_blocks, blocks)``, the distinct tag
@@ -98,17 +74,6 @@ class Chunks:
 class _InMemory(Chunks):
     """A :class:`~qdrefine.Mesh` as one chunk, grouped by one sort of the tags."""
 
-    def __init__(self, mesh) -> None:
-        k = 0 if mesh.edges is None else len(mesh.edges)
-        super().__init__(
-            mesh.n_points, mesh.n_triangles, k,
-            lambda: iter([(0, np.asarray(mesh.points))]),
-            lambda: iter([(0, np.asarray(mesh.triangles))]),
-            None if mesh.cell_tags is None else lambda a, b: mesh.cell_tags[a:b],
-            (lambda: iter([(0, np.asarray(mesh.edges))])) if k else None,
-            (lambda a, b: mesh.edge_tags[a:b]) if k else None)
-        self.mesh = mesh
-
     def groups(self, kind: str) -> tuple[list[int], int, Callable[[], Iterator]]:
         if kind == "triangles":
             tags, cells, n = self.mesh.cell_tags, self.mesh.triangles, self.n_triangles
@@ -136,7 +101,7 @@ def write(path: Path, mesh, *, binary: bool = False, version: str = "4.1") -> No
     _check_version(path, version)
     point_data, cell_data = mesh_data(mesh)
     sections = _data_sections(path, mesh, point_data, cell_data, binary)
-    _write(path, _InMemory(mesh), binary, version, mesh.physical_names, sections)
+    _write(path, _InMemory.of_mesh(mesh), binary, version, mesh.physical_names, sections)
 
 
 def write_chunks(path: Path, source: Chunks, *, binary: bool = False,
