@@ -7,7 +7,6 @@ import contextlib
 import errno
 import os
 import stat
-import tempfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -297,13 +296,19 @@ def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
     temps: list[Path] = []
     try:
         for path in targets:
-            try:
-                fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.",
-                                           suffix=f".tmp{path.suffix}", dir=path.parent)
-            except OSError as exc:
-                raise cannot_write(path, exc.strerror or str(exc), exc.errno) from None
+            # named and listed before it exists, so that an interrupt (Ctrl-C, SIGTERM)
+            # landing just after its creation still finds it to remove
+            while True:
+                tmp = path.parent / f".{path.stem}.{os.urandom(4).hex()}.tmp{path.suffix}"
+                temps.append(tmp)
+                try:
+                    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+                    break
+                except FileExistsError:
+                    temps.pop()
+                except OSError as exc:
+                    raise cannot_write(path, exc.strerror or str(exc), exc.errno) from None
             os.close(fd)
-            temps.append(Path(tmp))
             os.chmod(tmp, permission_bits(path))
         try:
             yield temps
