@@ -110,6 +110,40 @@ def test_near_ties_with_inexact_differences_go_to_the_exact_stage():
         assert np.array_equal(out.triangles.copy_to_host(), cpu.triangles)
 
 
+def lattice_soup(n_triangles: int, seed: int) -> Mesh:
+    """Disjoint triangles with corners on a small integer lattice scaled by 0.1 and moved
+    far from the origin: their side lengths and pentagon forms tie in real arithmetic (many
+    isosceles and right triangles), but the float coordinates are not multiples of 0.1, so
+    the differences are inexact and stages 2 and 3 of the predicates decide most signs."""
+    rng = np.random.default_rng(seed)
+    corners = rng.integers(0, 5, (n_triangles, 3, 2)).astype(float)
+    t = np.arange(n_triangles)
+    corners += 7.0 * np.stack([t % 1000, t // 1000], 1)[:, None, :] + 11.0
+    points = (corners * 0.1).reshape(-1, 2)
+    triangles = np.arange(3 * n_triangles).reshape(-1, 3)
+    signs = orient_signs(points, triangles)
+    triangles = np.where((signs < 0)[:, None], triangles[:, ::-1], triangles)[signs != 0]
+    used = np.unique(triangles)
+    return Mesh._trusted(points[used], np.searchsorted(used, triangles))
+
+
+def test_lattice_ties_in_bulk():
+    """Many exact-in-reals ties with inexact float differences, in one launch: the filter,
+    stage 2 and the device's expansions against the CPU (the kernels' products are never
+    fused into sums: see :mod:`qdrefine.gpu.predicates`). On the simulator a few hundred
+    triangles, on a GPU 300,000."""
+    from numba.core import config
+
+    mesh = lattice_soup(300 if config.ENABLE_CUDASIM else 300_000, 5)
+    for scheme in SCHEMES:
+        for levels in (1, 2) if scheme == "7t-qd" else (1,):
+            out = refine_device(mesh.points, mesh.triangles, scheme, levels, strict=False)
+            assert sum(out.exact_stage) > 0
+            cpu = refine(mesh, scheme, levels, strict=False)
+            assert np.array_equal(out.points.copy_to_host(), cpu.points)
+            assert np.array_equal(out.triangles.copy_to_host(), cpu.triangles)
+
+
 def test_high_degree_vertices():
     """A fan of 40 triangles: the centre's run of 40 half-edges is heap-sorted."""
     k = 40

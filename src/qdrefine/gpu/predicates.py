@@ -21,6 +21,18 @@ stage decided.
 Stage 2 needs a fused multiply-add rounded once: ``cuda.fma`` on a device. The CUDA
 simulator's ``cuda.fma`` computes ``a * b + c`` with two roundings, so under the simulator the
 CPU's ``llvm.fma`` (through a small njit function) stands in for it.
+
+**Contraction.** The CPU's code is compiled without contraction; numba-cuda's NVVM is not
+(its default ``-fma=1`` fuses ``a * b + c`` into one FMA, and ptxas may fuse any ``mul.f64``
+feeding an ``add.f64``; read off the PTX for sm_90). Where that matters, this module says so:
+
+* the filters (stage 1, :func:`suspect`) stay certified: a fused operation is the case
+  "this product's rounding error is 0" of the error analysis behind each bound, which holds
+  for every rounding error up to the unit roundoff;
+* the error-free transforms (stages 2 and 3) do not: ``x = a * b`` followed by
+  ``two_sum(x, y)`` must add the *rounded* product. Their products are therefore
+  :func:`mul_rn` (libdevice's ``dmul_rn``, PTX ``mul.rn.f64``), which neither NVVM nor
+  ptxas fuses, and their FMAs are explicit.
 """
 
 from __future__ import annotations
@@ -54,12 +66,22 @@ if SIMULATOR:
         """``a * b + c`` rounded once (the CPU's ``llvm.fma``; see the module docstring)."""
         return _llvm_fma(a, b, c)
 
+    @cuda.jit(device=True, inline=True)
+    def mul_rn(a, b):
+        """``a * b`` rounded once (the simulator fuses nothing)."""
+        return a * b
+
 else:
 
     @cuda.jit(device=True, inline=True)
     def fma(a, b, c):
         """``a * b + c`` rounded once."""
         return cuda.fma(a, b, c)
+
+    @cuda.jit(device=True, inline=True)
+    def mul_rn(a, b):
+        """``a * b`` rounded once and never fused into a later addition (``mul.rn.f64``)."""
+        return cuda.libdevice.dmul_rn(a, b)
 
 
 @cuda.jit(device=True, inline=True)
@@ -80,15 +102,15 @@ def _two_diff(a, b):
 
 @cuda.jit(device=True, inline=True)
 def _two_product(a, b):
-    x = a * b
+    x = mul_rn(a, b)
     return x, fma(a, b, -x)
 
 
 @cuda.jit(device=True, inline=True)
 def product_sign(a, b, c, d):
     """:func:`qdrefine.predicates.product_sign`."""
-    x = a * b
-    y = c * d
+    x = mul_rn(a, b)
+    y = mul_rn(c, d)
     if x > y:
         return 1
     if x < y:
