@@ -5,8 +5,10 @@ real device. This script does, on any machine with ``pip install -e '.[gpu]'`` (
 with the CUDA 12 toolkit wheels, which bring NVVM; no driver or GPU needed): it compiles
 each kernel with the argument types of a 7T-QD level on an ``int32`` mesh for compute
 capability ``--cc`` (default 9.0, H100) and prints, per kernel, the PTX size and its
-double-precision ``fma`` and ``div`` instructions (every ``div`` must be ``div.rn``: IEEE
-division, as on the CPU). Exit status 1 if any kernel fails to compile.
+double-precision ``fma``, ``mul.rn`` and ``div`` instructions (every ``div`` must be
+``div.rn``: IEEE division, as on the CPU; ``mul.rn`` are the error-free transforms' products,
+which nothing fuses: see :mod:`qdrefine.gpu.predicates`). Exit status 1 if any kernel fails
+to compile.
 
 Run: ``python benchmarks/gpu_compile_check.py [--cc 9.0]`` (not under NUMBA_ENABLE_CUDASIM).
 """
@@ -60,6 +62,7 @@ def main() -> int:
         k.repeat: (a(i64), i64, a(i64)),
         k.split_edges: (a(i32, 2), i64, a(i64), a(i64), a(i32), i64, a(i32, 2), a(i64)),
         r._index_range: (a(i32, 2), a(i64)),
+        r._first_out_of_range: (a(i32, 2), i64, a(i64)),
     }
     failed = 0
     print(f"compute capability {cc[0]}.{cc[1]}")
@@ -72,8 +75,9 @@ def main() -> int:
             print(f"{name:14} FAILED: {type(exc).__name__}: {str(exc)[:2000]}")
             continue
         divs = re.findall(r"\bdiv\.\w+\.f64", ptx)
+        kinds = ", ".join(sorted(set(divs))) or "-"
         print(f"{name:14} ok  {len(ptx):7d} bytes of PTX  fma.f64: {ptx.count('fma.rn.f64'):3d}"
-              f"  div.f64: {len(divs)} ({', '.join(sorted(set(divs))) or '-'})")
+              f"  mul.rn.f64: {ptx.count('mul.rn.f64'):3d}  div.f64: {len(divs)} ({kinds})")
     return 1 if failed else 0
 
 

@@ -365,11 +365,27 @@ def _check_indices(index, n: int, name: str) -> None:
     """``ValueError`` when a device index array has an entry outside ``[0, n)``."""
     if index.shape[0] == 0:
         return
+    first_bad = cuda.to_device(np.array([index.shape[0]], dtype=np.int64))
+    _first_out_of_range[blocks(index.shape[0]), THREADS](index, n, first_bad)
+    if int(first_bad.copy_to_host()[0]) == index.shape[0]:
+        return
+    # rare: the range for the message (atomics on one address serialise: only now)
     bounds = cuda.to_device(np.array([np.iinfo(np.int64).max, -1], dtype=np.int64))
     _index_range[blocks(index.shape[0]), THREADS](index, bounds)
     lo, hi = (int(b) for b in bounds.copy_to_host())
-    if lo < 0 or hi >= n:
-        raise ValueError(f"{name}: vertex indices must be in [0, {n}), got [{lo}, {hi}]")
+    raise ValueError(f"{name}: vertex indices must be in [0, {n}), got [{lo}, {hi}]")
+
+
+@cuda.jit
+def _first_out_of_range(index, n, first_bad):
+    """``first_bad[0]``: the least row of ``index`` with an entry outside ``[0, n)``
+    (unchanged when there is none; an atomic only where an entry is bad)."""
+    r = cuda.grid(1)
+    if r < index.shape[0]:
+        for i in range(index.shape[1]):
+            v = index[r, i]
+            if v < 0 or v >= n:
+                cuda.atomic.min(first_bad, 0, r)
 
 
 @cuda.jit

@@ -1,0 +1,63 @@
+"""``refine_device`` on CuPy arrays, PyTorch CUDA tensors (``__cuda_array_interface__``) and
+a DLPack-only producer, each against the CPU bit for bit; and PyTorch wrapping the output
+without a copy (not part of the test suite: it needs a GPU, CuPy and PyTorch).
+
+Run on a machine with a CUDA GPU: ``python benchmarks/gpu_interop.py``. Prints one line per
+kind of input.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from qdrefine import examples, refine
+from qdrefine.gpu import refine_device
+
+
+class DLPackOnly:
+    """A device array seen only through DLPack (no ``__cuda_array_interface__``)."""
+
+    def __init__(self, array) -> None:
+        self.array = array
+
+    def __dlpack__(self, **kwargs):
+        return self.array.__dlpack__(**kwargs)
+
+    def __dlpack_device__(self):
+        return self.array.__dlpack_device__()
+
+
+def main() -> None:
+    mesh = examples.jittered_square(30, 3, 0.5, "all")
+    cpu = refine(mesh, "7t-qd", 2)
+
+    def same(out, to_host) -> bool:
+        return bool(np.array_equal(to_host(out.points), cpu.points)
+                    and np.array_equal(to_host(out.triangles), cpu.triangles))
+
+    try:
+        import cupy
+
+        out = refine_device(cupy.asarray(mesh.points), cupy.asarray(mesh.triangles), "7t-qd", 2)
+        print("CuPy in:", type(out.points).__module__, "out; identical:", same(out, cupy.asnumpy))
+    except Exception as exc:  # report and go on to the next kind
+        print("CuPy FAILED:", type(exc).__name__, exc)
+    try:
+        import torch
+
+        points = torch.from_numpy(mesh.points.copy()).cuda()
+        triangles = torch.from_numpy(mesh.triangles.copy()).cuda()
+        for name, p, t in (("PyTorch", points, triangles),
+                           ("DLPack only", DLPackOnly(points), DLPackOnly(triangles))):
+            out = refine_device(p, t, "7t-qd", 2)
+            print(f"{name} in:", type(out.points).__module__, "out; identical:",
+                  same(out, lambda a: a.copy_to_host()))
+        wrapped = torch.as_tensor(out.points, device="cuda")
+        print("PyTorch wraps the output without a copy:",
+              wrapped.data_ptr() == out.points.__cuda_array_interface__["data"][0])
+    except Exception as exc:
+        print("PyTorch FAILED:", type(exc).__name__, exc)
+
+
+if __name__ == "__main__":
+    main()
