@@ -169,6 +169,19 @@ def test_areas_are_conserved_exactly_on_an_exact_grid(scheme):
     assert total == [orient(old[a], old[b], old[c]) for a, b, c in mesh.triangles.tolist()]
 
 
+def test_local_refinement_refuses_a_needle_it_would_flatten_and_only_that():
+    """The rounding check of local refinement covers every triangle that changes, and only
+    those: a needle far from the origin is refused when marked or reached by the closure,
+    and a step that leaves it as it was refines."""
+    points = np.array([[0, 0], [1, 0], [0.5, 1e-9], [3, 0], [3, 1], [4, 0]]) + 1e7
+    mesh = Mesh(points, [[0, 1, 2], [3, 5, 4]])  # the needle and a separate triangle
+    with pytest.raises(ValueError, match="triangle 0 .* too thin for its distance"):
+        refine(mesh, marked=[0])
+    fine = refine(mesh, marked=[1])
+    assert fine.n_triangles == 8
+    np.testing.assert_array_equal(fine.triangles[0], mesh.triangles[0])
+
+
 def test_areas_are_conserved_within_the_rounding_bound():
     """As in test_refine: with ``d`` the largest L1 displacement of a stored new point and
     ``L`` the parent's L1 perimeter, ``|sum(children) - parent| <= 3 L d + 3 d^2``."""

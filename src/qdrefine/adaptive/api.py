@@ -93,7 +93,7 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
             break
         res = windowed_step(out, mask, fam_mask, sch, fam)
         check_rounding(out.points, out.triangles, res.mesh.points, res.mesh.triangles, k,
-                       res.parents, everywhere=True)
+                       res.parents, suspect=_changed(out, res))
         out, fam = _finished(out, res)
         parents = parents[res.parents]
         mask = res.inside & (fam.member < 0)
@@ -102,6 +102,23 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
     if out is work:
         return mesh, np.arange(mesh.n_triangles, dtype=np.int64)
     return with_history(out, fam), parents
+
+
+def _changed(before: Mesh, res: Step) -> NDArray[np.bool_]:
+    """``(M,) bool``: the input triangles whose output is not the triangle itself, as it was.
+
+    Their children are all checked exactly for rounding (a coarsened family's children are
+    not on its first member's lattice, so the float suspect filter does not apply); an
+    output triangle that is its parent's only child with the parent's own vertex row (the
+    same points: the step keeps the input's point ids) was valid before and is skipped.
+    """
+    m = before.n_triangles
+    count = np.bincount(res.parents, minlength=m)
+    single = np.flatnonzero(count[res.parents] == 1)
+    same = (res.mesh.triangles[single] == before.triangles[res.parents[single]]).all(axis=1)
+    changed = np.ones(m, dtype=bool)
+    changed[res.parents[single[same]]] = False
+    return changed
 
 
 def _finished(before: Mesh, res: Step) -> tuple[Mesh, Families]:
