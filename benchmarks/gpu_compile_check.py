@@ -4,10 +4,13 @@ The CUDA simulator runs the kernels as Python, so it does not prove that they co
 real device. This script does, on any machine with ``pip install -e '.[gpu]'`` (numba-cuda
 with the CUDA 12 toolkit wheels, which bring NVVM; no driver or GPU needed): it compiles
 each kernel with the argument types of a 7T-QD level on an ``int32`` mesh for compute
-capability ``--cc`` (default 9.0, H100) and prints, per kernel, the PTX size and its
-double-precision ``fma``, ``mul.rn`` and ``div`` instructions (every ``div`` must be
-``div.rn``: IEEE division, as on the CPU; ``mul.rn`` are the error-free transforms' products,
-which nothing fuses: see :mod:`qdrefine.gpu.predicates`). Exit status 1 if any kernel fails
+capability ``--cc`` (default 9.0, H100), twice: with numba-cuda's NVVM options (``-fma=1``,
+NVVM's default) and with ``-fma=0``. Per kernel it prints the PTX size, the
+double-precision FMAs (all, and ``contracted``: the difference between the two builds, the
+``a * b + c`` that NVVM fused by itself), the ``mul.rn.f64`` (the error-free transforms'
+products, which neither NVVM nor ptxas fuses: see :mod:`qdrefine.gpu.predicates`), the plain
+``mul.f64`` (which ptxas may still fuse into a following addition) and the divisions (every
+one must be ``div.rn``: IEEE division, as on the CPU). Exit status 1 if any kernel fails
 to compile.
 
 Run: ``python benchmarks/gpu_compile_check.py [--cc 9.0]`` (not under NUMBA_ENABLE_CUDASIM).
@@ -18,6 +21,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from contextlib import contextmanager
 
 import numba.cuda.dispatcher as dispatcher
 from numba import cuda
@@ -70,15 +74,37 @@ def main() -> int:
         name = kernel.py_func.__name__
         try:
             ptx, _ = cuda.compile_ptx(kernel.py_func, sig, cc=cc)
+            with _no_contraction():
+                strict, _ = cuda.compile_ptx(kernel.py_func, sig, cc=cc)
         except Exception as exc:  # report every kernel, then fail
             failed += 1
-            print(f"{name:14} FAILED: {type(exc).__name__}: {str(exc)[:2000]}")
+            print(f"{name:20} FAILED: {type(exc).__name__}: {str(exc)[:2000]}")
             continue
         divs = re.findall(r"\bdiv\.\w+\.f64", ptx)
         kinds = ", ".join(sorted(set(divs))) or "-"
-        print(f"{name:14} ok  {len(ptx):7d} bytes of PTX  fma.f64: {ptx.count('fma.rn.f64'):3d}"
-              f"  mul.rn.f64: {ptx.count('mul.rn.f64'):3d}  div.f64: {len(divs)} ({kinds})")
+        fma = ptx.count("fma.rn.f64")
+        plain = len(re.findall(r"\bmul\.f64", ptx))
+        print(f"{name:20} ok {len(ptx):7d} B  fma.f64 {fma:3d} (contracted "
+              f"{fma - strict.count('fma.rn.f64'):2d})  mul.rn.f64 {ptx.count('mul.rn.f64'):3d}"
+              f"  mul.f64 {plain:3d}  div {len(divs)} ({kinds})")
     return 1 if failed else 0
+
+
+@contextmanager
+def _no_contraction():
+    """NVVM compiles with ``-fma=0`` inside the block (numba-cuda has no option for it)."""
+    from numba.cuda.cudadrv import nvvm
+
+    original = nvvm.CompilationUnit.__init__
+
+    def init(self, options):
+        original(self, dict(options, fma=False))
+
+    nvvm.CompilationUnit.__init__ = init
+    try:
+        yield
+    finally:
+        nvvm.CompilationUnit.__init__ = original
 
 
 if __name__ == "__main__":

@@ -111,15 +111,16 @@ def test_near_ties_with_inexact_differences_go_to_the_exact_stage():
 
 
 def lattice_soup(n_triangles: int, seed: int) -> Mesh:
-    """Disjoint triangles with corners on a small integer lattice scaled by 0.1 and moved
-    far from the origin: their side lengths and pentagon forms tie in real arithmetic (many
-    isosceles and right triangles), but the float coordinates are not multiples of 0.1, so
-    the differences are inexact and stages 2 and 3 of the predicates decide most signs."""
+    """Triangles (a soup: no two share a vertex; they may overlap, which refinement does not
+    mind) with corners on the lattice ``0.1 * {0, ..., 7}^2``: their side lengths and
+    pentagon forms tie in real arithmetic (many isosceles and right triangles), but 0.1 is
+    not a double and the corners differ by up to 7 times the smaller one, so the coordinate
+    differences are inexact and neither the filter nor stage 2 decides the near-ties: on
+    300 triangles 10-18% need the exact stage, per scheme."""
     rng = np.random.default_rng(seed)
-    corners = rng.integers(0, 5, (n_triangles, 3, 2)).astype(float)
-    t = np.arange(n_triangles)
-    corners += 7.0 * np.stack([t % 1000, t // 1000], 1)[:, None, :] + 11.0
-    points = (corners * 0.1).reshape(-1, 2)
+    corners = (rng.integers(0, 5, (n_triangles, 3, 2))
+               + rng.integers(0, 4, (n_triangles, 1, 2))).astype(float) * 0.1
+    points = corners.reshape(-1, 2)
     triangles = np.arange(3 * n_triangles).reshape(-1, 3)
     signs = orient_signs(points, triangles)
     triangles = np.where((signs < 0)[:, None], triangles[:, ::-1], triangles)[signs != 0]
@@ -129,19 +130,19 @@ def lattice_soup(n_triangles: int, seed: int) -> Mesh:
 
 def test_lattice_ties_in_bulk():
     """Many exact-in-reals ties with inexact float differences, in one launch: the filter,
-    stage 2 and the device's expansions against the CPU (the kernels' products are never
-    fused into sums: see :mod:`qdrefine.gpu.predicates`). On the simulator a few hundred
-    triangles, on a GPU 300,000."""
+    stage 2 and the device's expansions against the CPU, bit for bit, at least 5% of the
+    triangles through the exact stage. On the simulator a few hundred triangles, on a GPU
+    300,000 (where the arithmetic is the device's own: see the contraction note in
+    :mod:`qdrefine.gpu.predicates`)."""
     from numba.core import config
 
     mesh = lattice_soup(300 if config.ENABLE_CUDASIM else 300_000, 5)
     for scheme in SCHEMES:
         for levels in (1, 2) if scheme == "7t-qd" else (1,):
             out = refine_device(mesh.points, mesh.triangles, scheme, levels, strict=False)
-            assert sum(out.exact_stage) > 0
-            cpu = refine(mesh, scheme, levels, strict=False)
-            assert np.array_equal(out.points.copy_to_host(), cpu.points)
-            assert np.array_equal(out.triangles.copy_to_host(), cpu.triangles)
+            assert out.exact_stage[0] >= mesh.n_triangles // 20, (scheme, out.exact_stage)
+            assert_identical(refine(mesh, scheme, levels, strict=False), Mesh._trusted(
+                out.points.copy_to_host(), out.triangles.copy_to_host()))
 
 
 def test_high_degree_vertices():
@@ -216,6 +217,8 @@ def test_bad_input_is_refused_with_one_line():
          "dtype"),
         (lambda: refine_device(mesh.points[:, :1], mesh.triangles), "shape"),
         (lambda: refine_device(mesh.points, mesh.triangles + 3), r"\[0, 4\)"),
+        (lambda: refine_device(mesh.points, mesh.triangles, edges=np.array([[0, 9]]),
+                               edge_tags=np.array([1])), r"edges: vertex indices .*\[0, 4\)"),
         (lambda: refine_device(mesh.points, mesh.triangles, levels=-1), "levels"),
         (lambda: refine_device(mesh.points, mesh.triangles, cell_tags=np.zeros(5, np.int64)),
          "cell_tags"),

@@ -22,17 +22,20 @@ Stage 2 needs a fused multiply-add rounded once: ``cuda.fma`` on a device. The C
 simulator's ``cuda.fma`` computes ``a * b + c`` with two roundings, so under the simulator the
 CPU's ``llvm.fma`` (through a small njit function) stands in for it.
 
-**Contraction.** The CPU's code is compiled without contraction; numba-cuda's NVVM is not
-(its default ``-fma=1`` fuses ``a * b + c`` into one FMA, and ptxas may fuse any ``mul.f64``
-feeding an ``add.f64``; read off the PTX for sm_90). Where that matters, this module says so:
+**Contraction.** The CPU's code is compiled without contraction; numba-cuda's is not: NVVM
+runs with its default ``-fma=1`` and fuses ``a * b + c`` into one FMA (in the filters and
+:func:`suspect`: ``benchmarks/gpu_compile_check.py`` counts them per kernel), and ptxas may
+still fuse any plain ``mul.f64`` whose result feeds an ``add.f64``. Hence:
 
 * the filters (stage 1, :func:`suspect`) stay certified: a fused operation is the case
   "this product's rounding error is 0" of the error analysis behind each bound, which holds
-  for every rounding error up to the unit roundoff;
-* the error-free transforms (stages 2 and 3) do not: ``x = a * b`` followed by
-  ``two_sum(x, y)`` must add the *rounded* product. Their products are therefore
-  :func:`mul_rn` (libdevice's ``dmul_rn``, PTX ``mul.rn.f64``), which neither NVVM nor
-  ptxas fuses, and their FMAs are explicit.
+  for every rounding error up to the unit roundoff (where the value uses a product fused
+  and the bound the rounded one, the value's error only shrinks);
+* the error-free transforms (stages 2 and 3) would not: ``x = a * b`` followed by
+  ``two_sum(x, y)`` must add the *rounded* product. NVVM happened not to fuse them, but
+  their PTX had the plain ``mul.f64`` into ``add.f64`` that ptxas may fuse, so their
+  products are :func:`mul_rn` (libdevice's ``dmul_rn``, PTX ``mul.rn.f64``), which neither
+  NVVM nor ptxas fuses, and their FMAs are explicit.
 """
 
 from __future__ import annotations
