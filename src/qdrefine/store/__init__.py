@@ -47,10 +47,12 @@ from .layout import (
     ARRAYS,
     DEFAULT_CHUNK_SIZE,
     DIMENSIONS,
+    NODE_COORDINATES,
     MeshStore,
     finish,
     is_store,
     new_group,
+    node_coordinates,
     open,
     to_mesh,
 )
@@ -59,5 +61,5 @@ from .locations import PathLike, filesystem, is_local, location
 
 __all__ = ["MeshStore", "create", "open", "to_mesh", "from_file", "to_file", "is_store",
            "clean", "location", "filesystem", "new_group", "finish", "remove", "writing",
-           "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT", "ARRAYS", "DIMENSIONS", "PathLike",
-           "is_local"]
+           "node_coordinates", "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT", "ARRAYS",
+           "NODE_COORDINATES", "DIMENSIONS", "PathLike", "is_local"]
