@@ -213,12 +213,21 @@ def test_store_layout_is_documented(tmp_path):
     assert meta["attributes"]["qdrefine"] == {
         "format": "mesh", "version": 2, "complete": True, "chunk_size": 4,
         "qdrefine_version": qdrefine.__version__, "metadata": {}}
+    assert meta["attributes"]["Conventions"] == "UGRID-1.0"
     consolidated = meta["consolidated_metadata"]["metadata"]
-    assert consolidated["mesh"]["attributes"]["cf_role"] == "mesh_topology"
+    assert consolidated["mesh"]["attributes"] == {
+        "cf_role": "mesh_topology", "long_name": "2D triangle mesh (qdrefine)",
+        "topology_dimension": 2, "node_dimension": "node", "face_dimension": "face",
+        "node_coordinates": "node_x node_y", "face_node_connectivity": "triangles"}
+    assert {k: consolidated["triangles"]["attributes"][k] for k in ("cf_role", "start_index")
+            } == {"cf_role": "face_node_connectivity", "start_index": 0}
+    assert consolidated["triangles"]["fill_value"] == -1  # UGRID's fill, as Zarr's fill_value
+    assert "_FillValue" not in consolidated["triangles"]["attributes"]  # xarray: float64
+    assert "cf_role" not in consolidated["edges"]["attributes"]  # not every edge: see ATTRIBUTES
     for name, dims in store.DIMENSIONS.items():
         assert consolidated[name]["dimension_names"] == list(dims)
     names = sorted(p.name for p in (tmp_path / "m.zarr").iterdir() if p.is_dir())
-    assert names == sorted(FIELDS + ("mesh",))
+    assert names == sorted(FIELDS + store.NODE_COORDINATES + ("mesh",))
 
 
 def test_xarray_opens_a_store(tmp_path):
@@ -229,8 +238,11 @@ def test_xarray_opens_a_store(tmp_path):
     ds = xr.open_zarr(tmp_path / "m.zarr")
     assert dict(ds.sizes) == {"node": mesh.n_points, "xy": 2, "face": mesh.n_triangles,
                               "corner": 3, "edge": len(mesh.edges), "end": 2}
+    assert ds["triangles"].dtype == mesh.triangles.dtype  # not decoded as float (no mask)
     np.testing.assert_array_equal(ds["triangles"].values, mesh.triangles)
     np.testing.assert_array_equal(ds["cell_tags"].values, mesh.cell_tags)
+    np.testing.assert_array_equal(ds["node_x"].values, mesh.points[:, 0])
+    np.testing.assert_array_equal(ds["node_y"].values, mesh.points[:, 1])
     assert ds["mesh"].attrs["face_node_connectivity"] == "triangles"
 
 

@@ -278,7 +278,8 @@ class Level:
         job.n_out = job.n + job.k * int(counts.sum())
         group = mesh_store.new_group(self.out, self._specs(job.n_out), self._chunks(),
                                      self.metadata)
-        job.out = {name: group[name] for name in mesh_store.ARRAYS if name in group}
+        job.out = {name: group[name] for name in mesh_store.ARRAYS + mesh_store.NODE_COORDINATES
+                   if name in group}
         offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
         n_targets = job.n_chunks + len(self.edge_ranges)
         if self.direct_back:
@@ -297,7 +298,10 @@ class Level:
                if c]
         points = da.concatenate([da.from_zarr(job.src["points"])] + new)
         points = points.rechunk((job.out["points"].chunks[0], 2))
-        tasks.append(da.store(points, job.out["points"], lock=False, compute=False))
+        columns = mesh_store.node_coordinates(points)
+        tasks.append(da.store([points, *columns.values()],
+                              [job.out[name] for name in ("points", *columns)], lock=False,
+                              compute=False))
         self._compute(tasks)
 
     def _back_shuffle(self, numbered: list, n_targets: int) -> list:
@@ -332,7 +336,8 @@ class Level:
 
 def copy_store(client: Client, src: mesh_store.MeshStore, out: str, metadata: dict[str, Any],
                timeouts: dict[str, float]) -> None:
-    """``levels = 0``: the source's arrays into ``out``, chunk by chunk."""
+    """``levels = 0``: the source's arrays into ``out``, chunk by chunk (``node_x`` and
+    ``node_y`` from the source's ``points``: a source written before them has none)."""
     import dask.array as da
     import zarr
 
@@ -341,9 +346,10 @@ def copy_store(client: Client, src: mesh_store.MeshStore, out: str, metadata: di
     specs = {n: (group[n].shape, group[n].dtype) for n in names}
     target = mesh_store.new_group(out, specs, {n: int(group[n].chunks[0]) for n in names},
                                   metadata)
-    sources = [da.from_zarr(group[n]) for n in names]
-    cluster.compute(client, [da.store(sources, [target[n] for n in names], lock=False,
-                                      compute=False)], **timeouts)
+    sources = {n: da.from_zarr(group[n]) for n in names}
+    sources |= mesh_store.node_coordinates(sources["points"])
+    cluster.compute(client, [da.store(list(sources.values()), [target[n] for n in sources],
+                                      lock=False, compute=False)], **timeouts)
 
 
 def _meta(*names: str, ints: int = 0) -> pd.DataFrame:

@@ -5,6 +5,8 @@ A store is a Zarr group (a local directory ``name.zarr``, or ``memory://``, ``s3
 ``gs://`` ... through fsspec) holding the arrays of a :class:`~qdrefine.Mesh`::
 
     points     (N, 2) float64          dims (node, xy)       fill NaN
+    node_x     (N,)   float64          dims (node,)          fill NaN, points[:, 0] (UGRID)
+    node_y     (N,)   float64          dims (node,)          fill NaN, points[:, 1] (UGRID)
     triangles  (M, 3) int32 or int64   dims (face, corner)   fill -1, counter-clockwise
     cell_tags  (M,)   int64            dims (face,)          optional
     edges      (K, 2) int32 or int64   dims (edge, end)      fill -1, optional, with edge_tags
@@ -12,8 +14,14 @@ A store is a Zarr group (a local directory ``name.zarr``, or ``memory://``, ``s3
     mesh       ()     int32            UGRID mesh topology (attributes only)
 
 chunked by ``C`` rows (:data:`DEFAULT_CHUNK_SIZE` unless chosen), Blosc LZ4 with byte
-shuffle, with Zarr ``dimension_names`` and consolidated metadata, so that
-``xarray.open_zarr`` opens a store. The group attribute ``qdrefine`` holds ``{"format":
+shuffle, with Zarr ``dimension_names`` and consolidated metadata. The layout is UGRID 1.0
+(group attribute ``Conventions: UGRID-1.0``; ``mesh`` names ``node_x node_y`` as node
+coordinates and ``triangles``, 0-based, as face-node connectivity), so that
+``xarray.open_zarr`` opens a store as a Dataset and ``xugrid.open_zarr`` as a
+``UgridDataset`` whose grid has exactly the mesh's points and triangles (both tested). The
+tagged edges are plain variables, not UGRID's ``edge_node_connectivity``, which would list
+every edge. qdrefine reads ``points``, never ``node_x``/``node_y``: stores of earlier
+versions, which lack them, still open. The group attribute ``qdrefine`` holds ``{"format":
 "mesh", "version": 2, "complete": true, "chunk_size": C, "qdrefine_version": ...,
 "metadata": {...}}``; ``complete`` is written last, after every chunk, and :func:`open`
 refuses a store without it. Unwritten chunks read as the fill values, which no valid mesh
@@ -47,10 +55,12 @@ from .layout import (
     ARRAYS,
     DEFAULT_CHUNK_SIZE,
     DIMENSIONS,
+    NODE_COORDINATES,
     MeshStore,
     finish,
     is_store,
     new_group,
+    node_coordinates,
     open,
     to_mesh,
 )
@@ -59,5 +69,5 @@ from .locations import PathLike, filesystem, is_local, location
 
 __all__ = ["MeshStore", "create", "open", "to_mesh", "from_file", "to_file", "is_store",
            "clean", "location", "filesystem", "new_group", "finish", "remove", "writing",
-           "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT", "ARRAYS", "DIMENSIONS", "PathLike",
-           "is_local"]
+           "node_coordinates", "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT", "ARRAYS",
+           "NODE_COORDINATES", "DIMENSIONS", "PathLike", "is_local"]

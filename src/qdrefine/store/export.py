@@ -22,6 +22,7 @@ from .layout import (
     as_store,
     chunk_size_of,
     new_group,
+    node_coordinates,
     open,
     to_mesh,
 )
@@ -66,7 +67,7 @@ def create(path: PathLike, mesh: Mesh, chunk_size: int = DEFAULT_CHUNK_SIZE,
     with writing(url) as tmp:
         group = new_group(tmp, {k: spec_of(v) for k, v in arrays.items()}, chunk_size,
                           metadata)
-        for name, value in arrays.items():
+        for name, value in (arrays | node_coordinates(mesh.points)).items():
             if value is not None and len(value):
                 group[name][...] = value
     return open(url)

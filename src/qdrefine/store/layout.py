@@ -1,6 +1,11 @@
 """The layout of a mesh store: its arrays, dimension names, fill values, chunks,
-compression and attributes (UGRID topology, the ``qdrefine`` attribute); creating an empty
-store, marking it complete, and opening, checking and loading one."""
+compression and attributes (UGRID 1.0 topology, the ``qdrefine`` attribute); creating an
+empty store, marking it complete, and opening, checking and loading one.
+
+The library reads :data:`ARRAYS`. For UGRID readers (xugrid), a store also holds the node
+coordinates as two 1-D arrays (:data:`NODE_COORDINATES`: the columns of ``points``, written
+with it); reading never needs them, so the stores of earlier versions, which lack them,
+still open."""
 
 from __future__ import annotations
 
@@ -18,8 +23,9 @@ if TYPE_CHECKING:
     import dask.array
 
 __all__ = ["DEFAULT_CHUNK_SIZE", "FORMAT", "VERSION", "READABLE", "ARRAYS", "COLUMNS",
-           "DIMENSIONS", "FILL", "MeshStore", "new_group", "finish", "is_store", "open",
-           "to_mesh", "as_store", "chunk_size_of"]
+           "NODE_COORDINATES", "CONVENTIONS", "DIMENSIONS", "FILL", "ATTRIBUTES",
+           "MeshStore", "new_group", "node_coordinates", "ugrid", "finish", "is_store",
+           "open", "to_mesh", "as_store", "chunk_size_of"]
 
 #: Rows per chunk unless chosen: 262144 triangles are 3 MiB of int32 indices.
 DEFAULT_CHUNK_SIZE = 1 << 18
@@ -32,12 +38,38 @@ FORMAT, VERSION = "mesh", 2
 READABLE = (1, 2)
 ARRAYS = ("points", "triangles", "cell_tags", "edges", "edge_tags")
 COLUMNS = {"points": 2, "triangles": 3, "cell_tags": 0, "edges": 2, "edge_tags": 0}
+#: The group attribute ``Conventions`` (as UGRID 1.0 recommends).
+CONVENTIONS = "UGRID-1.0"
+#: UGRID's node coordinates: the columns of ``points`` as 1-D arrays, in every store that
+#: has ``points`` (chunked as it), never read by the library.
+NODE_COORDINATES = ("node_x", "node_y")
 #: Zarr dimension names of every array (xarray needs them; shared names share sizes).
-DIMENSIONS = {"points": ("node", "xy"), "triangles": ("face", "corner"),
-              "cell_tags": ("face",), "edges": ("edge", "end"), "edge_tags": ("edge",)}
-#: Fill values of unwritten chunks: never valid (tags: the smallest int64).
-FILL = {"points": float("nan"), "triangles": -1, "edges": -1,
+DIMENSIONS = {"points": ("node", "xy"), "node_x": ("node",), "node_y": ("node",),
+              "triangles": ("face", "corner"), "cell_tags": ("face",),
+              "edges": ("edge", "end"), "edge_tags": ("edge",)}
+#: Fill values of unwritten chunks: never valid (tags: the smallest int64). The connectivity
+#: fill -1 is UGRID's (and xugrid's) fill value; it is Zarr's ``fill_value``, not a
+#: ``_FillValue`` attribute, which would make xarray decode the indices as float64.
+FILL = {"points": float("nan"), "node_x": float("nan"), "node_y": float("nan"),
+        "triangles": -1, "edges": -1,
         "cell_tags": int(np.iinfo(np.int64).min), "edge_tags": int(np.iinfo(np.int64).min)}
+#: Attributes of every array (UGRID 1.0 / CF). The tagged edges are a subset of the mesh's
+#: edges (boundary and interface pieces), so they are not UGRID's ``edge_node_connectivity``,
+#: which lists every edge: readers would take them for the mesh's edges (xugrid then refuses
+#: to derive its face-edge connectivity).
+ATTRIBUTES: dict[str, dict[str, Any]] = {
+    "points": {"long_name": "node coordinates (x, y); the same as node_x, node_y"},
+    "node_x": {"standard_name": "projection_x_coordinate",
+               "long_name": "x coordinate of the mesh nodes"},
+    "node_y": {"standard_name": "projection_y_coordinate",
+               "long_name": "y coordinate of the mesh nodes"},
+    "triangles": {"cf_role": "face_node_connectivity", "start_index": 0,
+                  "long_name": "the three nodes of every triangle, counter-clockwise"},
+    "cell_tags": {"mesh": "mesh", "location": "face", "long_name": "tag of every triangle"},
+    "edges": {"start_index": 0,
+              "long_name": "the two nodes of every tagged edge (not every edge of the mesh)"},
+    "edge_tags": {"long_name": "tag of every tagged edge"},
+}
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,7 +138,10 @@ def new_group(url: str, specs: Mapping[str, tuple[tuple[int, ...], Any] | None],
     ``(shape, dtype)`` or None.
 
     ``chunk_size`` is the rows per chunk of every array, or a mapping per array name.
-    Returns the Zarr group, ready for chunk-wise writes; :func:`writing` marks it complete.
+    With ``points``, the arrays :data:`NODE_COORDINATES` are created too (``(N,)`` float64,
+    chunked as ``points``): whoever writes ``points`` writes them, from
+    :func:`node_coordinates`. Returns the Zarr group, ready for chunk-wise writes;
+    :func:`writing` marks it complete.
     """
     import zarr
 
@@ -117,29 +152,35 @@ def new_group(url: str, specs: Mapping[str, tuple[tuple[int, ...], Any] | None],
     attrs = {"format": FORMAT, "version": VERSION, "complete": False,
              "chunk_size": chunk_size_of(rows["triangles"]), "qdrefine_version": __version__,
              "metadata": dict(metadata or {})}
-    group = zarr.create_group(store=url, attributes={"qdrefine": attrs})
-    for name, spec in specs.items():
-        if spec is not None:
-            shape, dtype = spec
-            chunks = (chunk_size_of(rows[name]),) + tuple(shape[1:])
-            group.create_array(name, shape=shape, chunks=chunks, dtype=dtype,
-                               fill_value=FILL[name], compressors=compressor(),
-                               dimension_names=DIMENSIONS[name])
-    group.create_array("mesh", shape=(), dtype=np.int32, fill_value=0,
-                       attributes=ugrid(specs))
+    group = zarr.create_group(store=url, attributes={"qdrefine": attrs,
+                                                     "Conventions": CONVENTIONS})
+    arrays = {name: spec for name, spec in specs.items() if spec is not None}
+    if "points" in arrays:
+        shape, _ = arrays["points"]
+        arrays |= {name: ((shape[0],), np.float64) for name in NODE_COORDINATES}
+        rows |= {name: rows["points"] for name in NODE_COORDINATES}
+    for name, (shape, dtype) in arrays.items():
+        chunks = (chunk_size_of(rows[name]),) + tuple(shape[1:])
+        group.create_array(name, shape=shape, chunks=chunks, dtype=dtype,
+                           fill_value=FILL[name], compressors=compressor(),
+                           dimension_names=DIMENSIONS[name], attributes=ATTRIBUTES[name])
+    group.create_array("mesh", shape=(), dtype=np.int32, fill_value=0, attributes=ugrid())
     return group
 
 
-def ugrid(specs: Mapping[str, Any]) -> dict[str, Any]:
-    """UGRID-style attributes of the ``mesh`` topology variable (node coordinates are the
-    two columns of ``points``, not separate ``node_x``/``node_y`` variables)."""
-    attrs = {"cf_role": "mesh_topology", "long_name": "2D triangle mesh (qdrefine)",
-             "topology_dimension": 2, "node_dimension": "node", "face_dimension": "face",
-             "node_coordinates": "points", "face_node_connectivity": "triangles",
-             "start_index": 0}
-    if specs.get("edges") is not None:
-        attrs |= {"edge_dimension": "edge", "edge_node_connectivity": "edges"}
-    return attrs
+def node_coordinates(points: Any) -> dict[str, Any]:
+    """``{"node_x": points[:, 0], "node_y": points[:, 1]}``: what to write to the arrays
+    :data:`NODE_COORDINATES` wherever ``points (N, 2)`` (NumPy or Dask) is written."""
+    return {name: points[:, i] for i, name in enumerate(NODE_COORDINATES)}
+
+
+def ugrid() -> dict[str, Any]:
+    """UGRID 1.0 attributes of the ``mesh`` topology variable: a 2D mesh of triangles with
+    node coordinates ``node_x node_y`` and face-node connectivity ``triangles``
+    (0-based). No ``edge_node_connectivity``: see :data:`ATTRIBUTES`."""
+    return {"cf_role": "mesh_topology", "long_name": "2D triangle mesh (qdrefine)",
+            "topology_dimension": 2, "node_dimension": "node", "face_dimension": "face",
+            "node_coordinates": "node_x node_y", "face_node_connectivity": "triangles"}
 
 
 def compressor():
