@@ -16,6 +16,11 @@ from .common import EXACT_INT, VERSIONS
 
 __all__ = ["write", "write_chunks", "Chunks", "GROUPED_PASSES"]
 
+#: Rows per piece of a binary section: pieces go through one reused buffer (32 MiB of
+#: elements), which costs less than building the whole section (page faults of a fresh
+#: array as large as the file).
+BINARY_ROWS = 1 << 20
+
 #: Up to this many tag values, a chunked mesh is written with one element block per tag
 #: (one pass over its chunks per tag, the layout of :func:`write`); beyond, one block per
 #: tag in each chunk (two passes in all).
@@ -143,8 +148,9 @@ def _write(path: Path, source: Chunks, binary: bool, version: str, physical_name
 def _bounding_box(source: Chunks) -> list[float]:
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     for _, p in source.points():
-        if len(p):
-            lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
+        if len(p):  # per column: numpy's axis-0 reduction of (n, 2) is ~15x slower
+            lo = np.minimum(lo, [p[:, 0].min(), p[:, 1].min()])
+            hi = np.maximum(hi, [p[:, 0].max(), p[:, 1].max()])
     if not source.n_points:
         return [0.0] * 6
     return [float(lo[0]), float(lo[1]), 0.0, float(hi[0]), float(hi[1]), 0.0]
@@ -177,12 +183,18 @@ def _write41(out, source: Chunks, binary: bool) -> None:
     if binary:
         out.write(np.array([1, n, 1, n], np.uint64).tobytes())
         out.write(np.array([2, 1, 0], np.int32).tobytes() + np.array([n], np.uint64).tobytes())
+        tags = np.empty(min(n, BINARY_ROWS), np.uint64)
         for start, p in source.points():
-            out.write(np.arange(start + 1, start + len(p) + 1, dtype=np.uint64).tobytes())
+            for a in range(0, len(p), BINARY_ROWS):
+                b = min(a + BINARY_ROWS, len(p))
+                np.add(np.arange(b - a, dtype=np.uint64), start + a + 1, out=tags[:b - a])
+                out.write(memoryview(tags[:b - a]))
+        xyz = np.zeros((min(n, BINARY_ROWS), 3))
         for _, p in source.points():
-            xyz = np.zeros((len(p), 3))
-            xyz[:, :2] = p
-            out.write(xyz.tobytes())
+            for a in range(0, len(p), BINARY_ROWS):
+                b = min(a + BINARY_ROWS, len(p))
+                xyz[:b - a, :2] = p[a:b]
+                out.write(memoryview(xyz[:b - a]).cast("B"))
         out.write(b"\n")
     else:
         out.write(f"1 {n} 1 {n}\n2 1 0 {n}\n".encode())
@@ -199,6 +211,7 @@ def _write41(out, source: Chunks, binary: bool) -> None:
         out.write(np.array([n_blocks, total, 1, total], np.uint64).tobytes())
     else:
         out.write(f"{n_blocks} {total} 1 {total}\n".encode())
+    buffer = np.empty((min(max(m, k), BINARY_ROWS), 4), np.int64) if binary else None
     for dim, typ, first, blocks in ((2, 2, 0, surface_blocks), (1, 1, m, curve_blocks)):
         for ent, count, pieces in blocks():
             if binary:
@@ -207,18 +220,28 @@ def _write41(out, source: Chunks, binary: bool) -> None:
             else:
                 out.write(f"{dim} {ent} {typ} {count}\n".encode())
             for rows, cells in pieces:
-                block = _element_rows(rows, first, cells)
-                if binary:
-                    out.write(memoryview(block.view(np.uint64).reshape(-1)))
+                if binary:  # through one reused buffer: no array of the whole block
+                    for a in range(0, len(rows), BINARY_ROWS):
+                        b = min(a + BINARY_ROWS, len(rows))
+                        block = _element_rows(rows[a:b], first, cells[a:b], buffer)
+                        out.write(memoryview(block.view(np.uint64).reshape(-1)))
                 else:
-                    for piece in int_lines(block):
+                    for piece in int_lines(_element_rows(rows, first, cells)):
                         out.write(piece)
     out.write(b"\n$EndElements\n" if binary else b"$EndElements\n")
 
 
-def _element_rows(rows: NDArray[np.int64], first: int, cells: NDArray) -> NDArray[np.int64]:
-    """``(k, 1 + nodes) int64``: element tag ``first + row + 1`` and the 1-based nodes."""
-    block = np.empty((len(rows), 1 + cells.shape[1]), np.int64)
+def _element_rows(rows: NDArray[np.int64], first: int, cells: NDArray,
+                  buffer: NDArray[np.int64] | None = None) -> NDArray[np.int64]:
+    """``(k, 1 + nodes) int64``: element tag ``first + row + 1`` and the 1-based nodes (in
+    the first ``k`` rows and ``1 + nodes`` columns of ``buffer`` when given)."""
+    width = 1 + cells.shape[1]
+    if buffer is None:
+        block = np.empty((len(rows), width), np.int64)
+    else:
+        block = buffer[:len(rows), :width]
+        if width < buffer.shape[1]:  # lines: a contiguous (k, 3) view of the same memory
+            block = buffer.reshape(-1)[:len(rows) * width].reshape(len(rows), width)
     block[:, 0] = rows
     block[:, 0] += first + 1
     block[:, 1:] = cells
