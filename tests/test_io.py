@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import qdrefine
 from meshes import DATA, jittered_grid
@@ -72,6 +74,26 @@ def test_binary_msh_written_in_pieces_is_the_same_file(tmp_path, monkeypatch):
     np.testing.assert_array_equal(back.points, mesh.points)
     np.testing.assert_array_equal(back.triangles, mesh.triangles)
     np.testing.assert_array_equal(back.edges, mesh.edges)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(-3, 3), min_size=1, max_size=40),
+       st.sampled_from([1, 300, 70_000, 2**40]))
+def test_tag_groups_is_a_stable_grouping(small, scale):
+    """The writer's grouping of rows by tag (8/16-bit radix keys for narrow tag ranges,
+    a stable sort otherwise) against argsort and unique."""
+    from qdrefine.io.gmsh.writing import tag_groups
+
+    tags = np.array(small, dtype=np.int64) * scale
+    values, order, sizes = tag_groups(tags)
+    expect = np.argsort(tags, kind="stable")
+    distinct, counts = np.unique(tags, return_counts=True)
+    np.testing.assert_array_equal(values, distinct)
+    np.testing.assert_array_equal(sizes, counts)
+    if order is None:
+        assert distinct.size == 1
+    else:
+        np.testing.assert_array_equal(order, expect)
 
 
 def test_binary_is_refused_where_there_is_none(tmp_path):

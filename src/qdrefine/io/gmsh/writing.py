@@ -65,10 +65,11 @@ class Chunks(MeshChunks):
 
         def per_chunk() -> Iterator[tuple[int, int, list]]:
             for start, c, tags in self.cells(kind):
-                order = np.argsort(tags, kind="stable")
-                present, first = np.unique(tags[order], return_index=True)
-                ends = np.append(first[1:], len(tags))
-                for v, a, b in zip(present.tolist(), first.tolist(), ends.tolist(),
+                present, order, sizes = tag_groups(tags)
+                if order is None:
+                    order = np.arange(len(tags))
+                ends = np.cumsum(sizes)
+                for v, a, b in zip(present.tolist(), (ends - sizes).tolist(), ends.tolist(),
                                    strict=True):
                     rows = order[a:b]
                     yield entity[v], b - a, [(start + rows, c[rows])]
@@ -90,15 +91,42 @@ class _InMemory(Chunks):
         everything = (np.arange(n, dtype=np.int64), cells)
         if tags is None:
             return [0], 1, lambda: iter([(1, n, iter([everything]))])
-        order = np.argsort(tags, kind="stable")
-        values, starts = np.unique(np.asarray(tags)[order], return_index=True)
-        ends = np.append(starts[1:], n)
+        values, order, sizes = tag_groups(np.asarray(tags))
+        if len(values) == 1:  # one tag: no gather
+            return values.tolist(), 1, lambda: iter([(1, n, [everything])])
+        ends = np.cumsum(sizes)
         blocks = []
-        for i, (s, e) in enumerate(zip(starts.tolist(), ends.tolist(), strict=True)):
-            rows = order[s:e]
-            piece = everything if e - s == n else (rows, cells[rows])  # one tag: no gather
-            blocks.append((i + 1, e - s, [piece]))
+        for i, (s, e) in enumerate(zip((ends - sizes).tolist(), ends.tolist(), strict=True)):
+            blocks.append((i + 1, e - s, _gathered(order[s:e], cells)))
         return values.tolist(), len(blocks), lambda: iter(blocks)
+
+
+def _gathered(rows: NDArray[np.int64], cells: NDArray) -> Iterator[tuple[NDArray, NDArray]]:
+    """``(rows, cells[rows])`` in pieces of :data:`BINARY_ROWS` rows, gathered as they are
+    written (no copy of the whole block)."""
+    for a in range(0, len(rows), BINARY_ROWS):
+        piece = rows[a:a + BINARY_ROWS]
+        yield piece, cells[piece]
+
+
+def tag_groups(tags: NDArray[np.integer]) -> tuple[NDArray[np.int64], NDArray[np.int64] | None,
+                                                   NDArray[np.int64]]:
+    """Rows grouped by tag: ``(values, order, sizes)``, the distinct values in increasing
+    order, the rows in stable order of their values (``None`` when there is one value) and
+    the rows per value. Tags spanning fewer than 65536 values (the usual case) are sorted
+    as 8- or 16-bit keys, for which numpy's stable sort is a radix sort (7x faster than
+    sorting the int64 tags of 7 M triangles here); others by a stable sort of the tags."""
+    lo, hi = int(tags.min()), int(tags.max())
+    if lo == hi:
+        return np.array([lo], dtype=np.int64), None, np.array([tags.size], dtype=np.int64)
+    if hi - lo < 1 << 16:
+        keys = (tags - lo).astype(np.uint8 if hi - lo < 1 << 8 else np.uint16)
+        counts = np.bincount(keys)
+        present = np.flatnonzero(counts)
+        return present + lo, np.argsort(keys, kind="stable"), counts[present]
+    order = np.argsort(tags, kind="stable")
+    values, first = np.unique(tags[order], return_index=True)
+    return values.astype(np.int64), order, np.diff(np.append(first, tags.size))
 
 
 def write(path: Path, mesh, *, binary: bool = False, version: str = "4.1") -> None:
