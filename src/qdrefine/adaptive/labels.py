@@ -64,6 +64,21 @@ def _canonical_edges(labels, tri_edges, out):
             out[t, i] = tri_edges[t, a if b == (a + 1) % 3 else b]
 
 
+def edge_split_codes(split: NDArray[np.bool_], ce: NDArray[np.int64]) -> NDArray[np.int64]:
+    """``split_codes(split[ce])`` in one compiled pass: the split code ``(M,)`` of triangles
+    whose canonical edges ``MN, NO, OM`` are the edges ``ce (M, 3)`` and ``split (E,)``
+    says which edges are split."""
+    out = np.empty(ce.shape[0], dtype=np.int64)
+    _edge_split_codes(split, ce, out)
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _edge_split_codes(split, ce, out):
+    for t in prange(ce.shape[0]):
+        out[t] = MN * split[ce[t, 0]] + NO * split[ce[t, 1]] + OM * split[ce[t, 2]]
+
+
 def split_codes(split: NDArray[np.bool_]) -> NDArray[np.int64]:
     """Split code ``(M,)`` (bits ``MN=1, NO=2, OM=4``) from ``split (M, 3)``, which says
     whether each canonical edge ``MN, NO, OM`` is split."""

@@ -4,6 +4,7 @@ output's families, and the tagged edges cut where they were split."""
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from ..mesh import Mesh, index_dtype
@@ -53,8 +54,7 @@ def emit_step(inp: StepInput, tree: Tree, cl: SplitPlan
     tris = np.empty((int(start[-1]), 3), dtype=np.int64)
     parents = np.repeat(tree.key[cl.leaves], nk)
 
-    same = np.flatnonzero(code == 0)
-    tris[start[same]] = cl.triangles[same]
+    _place_unchanged(tris, start, cl.triangles, code)
     full = np.flatnonzero(code == FULL)
     if full.size:
         kids = emit_full(points, cl.triangles[full], ep[cl.tri_edges[full]], inp.sch)
@@ -96,6 +96,16 @@ def emit_step(inp: StepInput, tree: Tree, cl: SplitPlan
     inside = np.repeat(tree.user[cl.leaves] & ~keep, nk)
     again = np.repeat(tree.again[cl.leaves] & (code != FULL), nk)  # done when partitioned
     return out, parents, families, inside, again, (keys, pts)
+
+
+@njit(cache=True)
+def _place_unchanged(tris, start, triangles, code):
+    """``tris[start[i]] = triangles[i]`` for every working triangle ``i`` of code 0 (one
+    pass; most of the mesh in a step with scattered marks)."""
+    for i in range(code.shape[0]):
+        if code[i] == 0:
+            for j in range(3):
+                tris[start[i], j] = triangles[i, j]
 
 
 def new_point_data(data: dict, n: int, keys: NDArray[np.int64], pts: NDArray[np.int64],

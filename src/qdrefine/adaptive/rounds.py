@@ -14,7 +14,7 @@ from ..kernels import number_edges
 from ..partition import partition_many
 from ..schemes import Scheme
 from .edgekeys import edge_keys, lookup
-from .labels import MN, NO, OM, canonical_edges, split_codes
+from .labels import MN, NO, OM, canonical_edges, edge_split_codes
 from .longest_edge import closure
 from .patterns import canonical_corners, min_angles, quality, stencil_coordinates
 from .working import StepInput, Tree, expand, with_edge_points
@@ -43,7 +43,7 @@ class SplitPlan:
 
     def codes(self) -> NDArray[np.int64]:
         """Split code of each working triangle."""
-        return split_codes(self.split[self.ce])
+        return edge_split_codes(self.split, self.ce)
 
 
 def plan_splits(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.int64]],

@@ -7,7 +7,8 @@ shape), so on a window whose rim keeps all its edges unsplit the step does exact
 does on the whole mesh; the window's points are renumbered in increasing global order, so
 split edges, new points and centroids come out in the same order too, and the stitched
 result is identical to the whole-mesh step (tested). The only passes over the whole mesh
-are the vertex-to-triangle table (numba, linear) and the copy of the untouched triangles.
+are linear: the rings (compiled, by vertex flags), the vertex-to-triangle table (built only
+once a window is small enough to try) and the copy of the untouched triangles.
 """
 
 from __future__ import annotations
@@ -36,21 +37,23 @@ def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.
     m = mesh.n_triangles
     if m < WHOLE_BELOW:
         return step(mesh, marked, fam_marked, sch, fam)
-    start, tris_of = vertex_triangles(mesh.triangles, mesh.n_points)
     seed = marked.copy()
     seed[fam.member >= 0] |= fam_marked[fam.member[fam.member >= 0]]
-    window = _grown(mesh.triangles, start, tris_of, seed, 2)
+    window = _grown(mesh.triangles, mesh.n_points, seed, 2)
+    start = tris_of = None  # the vertex-to-triangle table, built once a window is tried
     while True:
         window = _whole_families(window, fam)
         if window.sum() > WHOLE_ABOVE * m:
             return step(mesh, marked, fam_marked, sch, fam)
+        if start is None:
+            start, tris_of = vertex_triangles(mesh.triangles, mesh.n_points)
         res, verts = _sub_step(mesh, window, marked, fam_marked, sch, fam)
         to_global = np.concatenate([verts, mesh.n_points
                                     + np.arange(res.mesh.n_points - verts.size)])
         rim = _split_rim(mesh.triangles, start, tris_of, window, to_global, res)
         if not rim.any():
             return _stitched(mesh, window, verts, to_global, res, fam)
-        window |= _grown(mesh.triangles, start, tris_of, rim, 2)
+        window |= _grown(mesh.triangles, mesh.n_points, rim, 2)
 
 
 def vertex_triangles(triangles: NDArray, n_points: int
@@ -60,21 +63,25 @@ def vertex_triangles(triangles: NDArray, n_points: int
 
 
 @njit(cache=True)
-def _ring(triangles, start, tris_of, inside, out):
+def _ring(triangles, inside, touched, out):
+    """``out``: the triangles of ``inside`` and those sharing a vertex with one (two passes
+    over the triangles; ``touched``, one flag per point, comes in all False)."""
     for t in range(triangles.shape[0]):
         if inside[t]:
             for j in range(3):
-                v = triangles[t, j]
-                for i in range(start[v], start[v + 1]):
-                    out[tris_of[i]] = True
+                touched[triangles[t, j]] = True
+    for t in range(triangles.shape[0]):
+        out[t] = inside[t] or touched[triangles[t, 0]] or touched[triangles[t, 1]] \
+            or touched[triangles[t, 2]]
 
 
-def _grown(triangles: NDArray, start: NDArray[np.int64], tris_of: NDArray[np.int64],
-           window: NDArray[np.bool_], rings: int) -> NDArray[np.bool_]:
-    """``window`` with ``rings`` layers of triangles sharing a vertex with it added."""
+def _grown(triangles: NDArray, n_points: int, window: NDArray[np.bool_], rings: int
+           ) -> NDArray[np.bool_]:
+    """``window`` with ``rings`` layers of triangles sharing a vertex with it added (linear
+    passes: no vertex-to-triangle table, so that a window too large to use costs little)."""
     for _ in range(rings):
-        out = window.copy()
-        _ring(triangles, start, tris_of, window, out)
+        out = np.empty_like(window)
+        _ring(triangles, window, np.zeros(n_points, dtype=bool), out)
         window = out
     return window
 
@@ -95,8 +102,12 @@ def _sub_step(mesh: Mesh, window: NDArray[np.bool_], marked: NDArray[np.bool_],
     global order; returns the step and the window's points ``verts`` (global ids)."""
     rows = np.flatnonzero(window)
     tris = mesh.triangles[rows]
-    verts, local = np.unique(tris, return_inverse=True)
-    local = local.reshape(-1, 3).astype(index_dtype(verts.size))
+    in_window = np.zeros(mesh.n_points, dtype=bool)
+    in_window[tris.reshape(-1)] = True
+    verts = np.flatnonzero(in_window)  # increasing: the window's points in global order
+    to_local = np.full(mesh.n_points + 1, -1, dtype=np.int64)  # -1 stays -1
+    to_local[verts] = np.arange(verts.size)
+    local = to_local[tris].astype(index_dtype(verts.size))
     point_data = {name: v[verts] for name, v in mesh.point_data.items()}
     cell_data = {name: v[rows] for name, v in mesh.cell_data.items()}
     tags = None if mesh.cell_tags is None else mesh.cell_tags[rows]
@@ -106,8 +117,6 @@ def _sub_step(mesh: Mesh, window: NDArray[np.bool_], marked: NDArray[np.bool_],
     used = np.unique(member[member >= 0])
     new_fam = np.full(fam.n_families + 1, -1, dtype=np.int64)
     new_fam[used] = np.arange(used.size)
-    to_local = np.full(mesh.n_points + 1, -1, dtype=np.int64)  # -1 stays -1
-    to_local[verts] = np.arange(verts.size)
     sub_fam = Families(new_fam[member], to_local[fam.parent_triangles[used]],
                        to_local[fam.stencil[used]])
     return step(sub, marked[rows], fam_marked[used], sch, sub_fam), verts
