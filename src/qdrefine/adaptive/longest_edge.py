@@ -56,7 +56,8 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
     rounds = _propagate(split, cedges, np.flatnonzero(_touching(split, cedges)), around)
     if upgrade is None:
         return split, rounds
-    reached = _touching(split, cedges)  # the closure of the marks
+    before = np.zeros(n_edges, dtype=bool) if presplit is None else presplit
+    reached = _closure_of_marks(split, before, cedges, marked)
     while True:
         cand, codes = _candidates(split, cedges)
         if not cand.size:
@@ -76,8 +77,20 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
         rounds += 1 + _propagate(split, cedges, new[~split[cedges[new, 0]]], around)
         layers -= 1
         if layers > 0:
-            reached = _touching(split, cedges)
+            reached = _closure_of_marks(split, before, cedges, marked)
     return split, rounds
+
+
+def _closure_of_marks(split: NDArray[np.bool_], presplit: NDArray[np.bool_],
+                      cedges: NDArray[np.int64], marked: NDArray[np.bool_]
+                      ) -> NDArray[np.bool_]:
+    """``(M,) bool``: the marked triangles and those with an edge split in this step. A
+    transition elsewhere has split edges too (``presplit``), from an earlier step: it is
+    not in the closure of this step's marks, so its upgrade is judged as any triangle's
+    outside it (otherwise every earlier transition of the mesh could be upgraded in every
+    step, however far from the marks, and a step on a window around the marks would differ
+    from the step on the whole mesh)."""
+    return _touching(split & ~presplit, cedges) | marked
 
 
 @njit(parallel=True, cache=True)
