@@ -181,13 +181,20 @@ def test_local_refinement_refuses_a_needle_it_would_flatten_and_only_that():
     """The rounding check of local refinement covers every triangle that changes, and only
     those: a needle far from the origin is refused when marked or reached by the closure,
     and a step that leaves it as it was refines."""
-    points = np.array([[0, 0], [1, 0], [0.5, 1e-9], [3, 0], [3, 1], [4, 0]]) + 1e7
-    mesh = Mesh(points, [[0, 1, 2], [3, 5, 4]])  # the needle and a separate triangle
-    with pytest.raises(ValueError, match="triangle 0 .* too thin for its distance"):
-        refine(mesh, marked=[0])
-    fine = refine(mesh, marked=[1])
-    assert fine.n_triangles == 8
-    np.testing.assert_array_equal(fine.triangles[0], mesh.triangles[0])
+    points = np.array([[0, 0], [1, 0], [0.5, 1e-9], [3, 0], [3, 1], [4, 0], [0.5, -1],
+                       [0.75, 0.5]]) + 1e7
+    # the needle (0), a separate triangle (1), one across the needle's longest edge (2) and
+    # one across a short edge (3)
+    mesh = Mesh(points, [[0, 1, 2], [3, 5, 4], [0, 6, 1], [1, 7, 2]])
+    for marked in ([0], [3]):  # marked, or given points on a short edge by a mark's closure
+        with pytest.raises(ValueError, match="triangle 0 .* too thin for its distance"):
+            refine(mesh, marked=marked)
+    # points on its longest edge only: its transition's children have the needle's apex and
+    # points on the edge opposite (exact), nothing flat
+    assert refine(mesh, marked=[2]).n_triangles == 12
+    fine = refine(mesh, marked=[1])  # untouched
+    assert fine.n_triangles == 10
+    np.testing.assert_array_equal(fine.triangles[:1], mesh.triangles[:1])
 
 
 def test_areas_are_conserved_within_the_rounding_bound():

@@ -84,6 +84,8 @@ def test_tag_groups_is_a_stable_grouping(small, scale):
     a stable sort otherwise) against argsort and unique."""
     from qdrefine.io.gmsh.writing import tag_groups
 
+    empty = tag_groups(np.empty(0, dtype=np.int64))
+    assert empty[1] is None and empty[0].size == empty[2].size == 0
     tags = np.array(small, dtype=np.int64) * scale
     values, order, sizes = tag_groups(tags)
     expect = np.argsort(tags, kind="stable")

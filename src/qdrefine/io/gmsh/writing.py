@@ -111,11 +111,15 @@ def _gathered(rows: NDArray[np.int64], cells: NDArray) -> Iterator[tuple[NDArray
 
 def tag_groups(tags: NDArray[np.integer]) -> tuple[NDArray[np.int64], NDArray[np.int64] | None,
                                                    NDArray[np.int64]]:
-    """Rows grouped by tag: ``(values, order, sizes)``, the distinct values in increasing
-    order, the rows in stable order of their values (``None`` when there is one value) and
-    the rows per value. Tags spanning fewer than 65536 values (the usual case) are sorted
-    as 8- or 16-bit keys, for which numpy's stable sort is a radix sort (7x faster than
-    sorting the int64 tags of 7 M triangles here); others by a stable sort of the tags."""
+    """Rows grouped by integer tags (int64 or narrower): ``(values, order, sizes)``, the
+    distinct values in increasing order, the rows in stable order of their values (``None``
+    when there are fewer than two values) and the rows per value. Tags spanning fewer than
+    65536 values (the usual case) are sorted as 8- or 16-bit keys, for which numpy's stable
+    sort is a radix sort (7x faster than sorting the int64 tags of 7 M triangles here);
+    others by a stable sort of the tags."""
+    if tags.size == 0:
+        empty = np.empty(0, dtype=np.int64)
+        return empty, None, empty
     lo, hi = int(tags.min()), int(tags.max())
     if lo == hi:
         return np.array([lo], dtype=np.int64), None, np.array([tags.size], dtype=np.int64)
