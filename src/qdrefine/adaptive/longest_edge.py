@@ -16,7 +16,8 @@ from .labels import MN, OM
 def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
             presplit: NDArray[np.bool_] | None = None,
             upgrade: Callable[[NDArray[np.int64], NDArray[np.int64]], NDArray[np.bool_]]
-            | None = None, layers: int = 1) -> tuple[NDArray[np.bool_], int]:
+            | None = None, layers: int = 1, earlier: NDArray[np.bool_] | None = None
+            ) -> tuple[NDArray[np.bool_], int]:
     """Split edges: all edges of marked triangles, closed under the longest-edge rule
     (and the upgrade rule, if given).
 
@@ -32,6 +33,10 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
     upgrade : callable, optional
         ``upgrade(triangles, codes)`` says which of these triangles, whose split code
         (bits ``MN=1, NO=2, OM=4``) has ``MN`` but not ``NO``, get ``NO`` split as well.
+    earlier : (E,) bool, optional
+        The edges of ``presplit`` split by an earlier step (the others got their points in
+        this step, e.g. by an expansion); default: all of ``presplit``. A triangle whose
+        only split edges are earlier ones is not in the closure of the marks.
     layers : int
         How far upgrades may bring new triangles into the refinement: the upgrades of the
         triangles of the closure of the marks may (layer 1), then those of the triangles
@@ -56,7 +61,8 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
     rounds = _propagate(split, cedges, np.flatnonzero(_touching(split, cedges)), around)
     if upgrade is None:
         return split, rounds
-    before = np.zeros(n_edges, dtype=bool) if presplit is None else presplit
+    before = earlier if earlier is not None else (
+        np.zeros(n_edges, dtype=bool) if presplit is None else presplit)
     reached = _closure_of_marks(split, before, cedges, marked)
     while True:
         cand, codes = _candidates(split, cedges)
@@ -85,7 +91,7 @@ def _closure_of_marks(split: NDArray[np.bool_], presplit: NDArray[np.bool_],
                       cedges: NDArray[np.int64], marked: NDArray[np.bool_]
                       ) -> NDArray[np.bool_]:
     """``(M,) bool``: the marked triangles and those with an edge split in this step. A
-    transition elsewhere has split edges too (``presplit``), from an earlier step: it is
+    transition elsewhere has split edges too (``presplit``: those of earlier steps): it is
     not in the closure of this step's marks, so its upgrade is judged as any triangle's
     outside it (otherwise every earlier transition of the mesh could be upgraded in every
     step, however far from the marks, and a step on a window around the marks would differ

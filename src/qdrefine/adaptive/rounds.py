@@ -59,6 +59,7 @@ def plan_splits(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.in
     labels = tree.labels[leaves]
     ce = canonical_edges(labels, tri_edges)
     split, _ = closure(ce, tree.mark[leaves], edges.shape[0], presplit=pos >= 0,
+                       earlier=lookup(tree.earlier_keys, keys) >= 0,
                        upgrade=None if upgrades is None else
                        lambda t, code: upgrades(leaves[t], code), layers=UPGRADE_LAYERS)
     return SplitPlan(leaves, triangles, edges, tri_edges, counts, keys, pos, labels, ce, split)

@@ -50,6 +50,7 @@ class Tree:
     points: NDArray[np.float64]  # input points, then the points of expanded nodes' edges
     reg_keys: NDArray[np.int64]  # sorted keys of the edges whose points exist
     reg_pts: NDArray[np.int64]  # (R, k) their points, from the lower id
+    earlier_keys: NDArray[np.int64]  # sorted keys of the edges with points at the start
 
     def leaves(self) -> NDArray[np.int64]:
         idx = np.flatnonzero(~self.expanded)
@@ -76,7 +77,7 @@ def start(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_],
     rows = np.concatenate([mesh.triangles[t0].astype(np.int64), fam.parent_triangles])
     tree = Tree(rows, np.concatenate([t0, inp.first]), np.concatenate([-1 + 0 * t0, f1]),
                 own, own.copy(), np.zeros(own.size, bool), np.zeros(own.size, bool),
-                canonical_labels(mesh.points, rows), mesh.points, keys, pts)
+                canonical_labels(mesh.points, rows), mesh.points, keys, pts, keys)
     parents_of_marked = t0.size + np.unique(inp.pairs[:, 1])
     return inp, tree, expand(tree, parents_of_marked, sch)
 
