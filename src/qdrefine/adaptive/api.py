@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from ..arguments import as_count
@@ -112,13 +113,23 @@ def _changed(before: Mesh, res: Step) -> NDArray[np.bool_]:
     output triangle that is its parent's only child with the parent's own vertex row (the
     same points: the step keeps the input's point ids) was valid before and is skipped.
     """
-    m = before.n_triangles
-    count = np.bincount(res.parents, minlength=m)
-    single = np.flatnonzero(count[res.parents] == 1)
-    same = (res.mesh.triangles[single] == before.triangles[res.parents[single]]).all(axis=1)
-    changed = np.ones(m, dtype=bool)
-    changed[res.parents[single[same]]] = False
+    changed = np.ones(before.n_triangles, dtype=bool)
+    _mark_unchanged(res.parents, res.mesh.triangles, before.triangles,
+                    np.zeros(before.n_triangles, dtype=np.int64), changed)
     return changed
+
+
+@njit(cache=True)
+def _mark_unchanged(parents, children, triangles, count, changed):
+    """``changed[p] = False`` for every parent ``p`` whose only child is its own row (two
+    passes over the output: counts, then the rows of the only children)."""
+    for r in range(parents.shape[0]):
+        count[parents[r]] += 1
+    for r in range(parents.shape[0]):
+        p = parents[r]
+        if count[p] == 1 and children[r, 0] == triangles[p, 0] \
+                and children[r, 1] == triangles[p, 1] and children[r, 2] == triangles[p, 2]:
+            changed[p] = False
 
 
 def _finished(before: Mesh, res: Step) -> tuple[Mesh, Families]:
