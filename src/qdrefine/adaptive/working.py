@@ -58,10 +58,12 @@ class Tree:
 
 
 def start(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_],
-          sch: Scheme, fam: Families) -> tuple[StepInput, Tree, NDArray[np.int64]]:
+          sch: Scheme, fam: Families, earlier: NDArray[np.int64] | None = None
+          ) -> tuple[StepInput, Tree, NDArray[np.int64]]:
     """The step's input and its working mesh: input triangles that are not transition
     children, then one root per family (``fam_marked`` marks roots), the parents of marked
-    members expanded; also returns the expanded parents' children ``(X, T)``."""
+    members expanded; also returns the expanded parents' children ``(X, T)``. ``earlier``:
+    sorted keys of the edges that had points before the step (default: ``fam``'s)."""
     member = fam.member
     if member.shape != (mesh.n_triangles,) or fam.per_edge != sch.stencil.per_edge:
         raise ValueError(f"families do not fit: {member.shape[0]} members for "
@@ -77,7 +79,8 @@ def start(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_],
     rows = np.concatenate([mesh.triangles[t0].astype(np.int64), fam.parent_triangles])
     tree = Tree(rows, np.concatenate([t0, inp.first]), np.concatenate([-1 + 0 * t0, f1]),
                 own, own.copy(), np.zeros(own.size, bool), np.zeros(own.size, bool),
-                canonical_labels(mesh.points, rows), mesh.points, keys, pts, keys)
+                canonical_labels(mesh.points, rows), mesh.points, keys, pts,
+                keys if earlier is None else earlier)
     parents_of_marked = t0.size + np.unique(inp.pairs[:, 1])
     return inp, tree, expand(tree, parents_of_marked, sch)
 
