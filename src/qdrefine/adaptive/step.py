@@ -53,16 +53,15 @@ def step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_], s
     """One refinement step of ``mesh`` with transition families ``fam`` (``marked``
     triangles and ``fam_marked`` families partitioned), with the follow-up step that
     partitions the children meeting marked members."""
-    earlier = fam.registry()[0]  # edges with points before the step (both passes)
     out, parents, fam2, inside, again, (keys, pts) = _one_step(mesh, marked, fam_marked, sch,
-                                                               fam, earlier)
+                                                               fam)
     centroids = fam.centroids()
     if again.any():
         fam_again = np.zeros(fam2.n_families, dtype=bool)
         fam_again[fam2.member[again & (fam2.member >= 0)]] = True
         centroids = np.union1d(centroids, fam2.centroids())
         out, step_parents, fam2, inside2, _, (keys2, pts2) = _one_step(
-            out, again & (fam2.member < 0), fam_again, sch, fam2, earlier)
+            out, again & (fam2.member < 0), fam_again, sch, fam2, fam.registry()[0])
         parents, inside = parents[step_parents], inside[step_parents] | inside2
         keys, first = np.unique(np.concatenate([keys, keys2]), return_index=True)
         pts = np.concatenate([pts, pts2])[first]
@@ -70,9 +69,10 @@ def step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_], s
 
 
 def _one_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_],
-              sch: Scheme, fam: Families, earlier: NDArray[np.int64]):
-    """One pass; ``earlier``: sorted keys of the edges that had points before the step (the
-    follow-up pass counts the first pass's points as this step's)."""
+              sch: Scheme, fam: Families, earlier: NDArray[np.int64] | None = None):
+    """One pass; ``earlier``: sorted keys of the edges that had points before the step
+    (default: ``fam``'s, right for the first pass; the follow-up pass gets the step
+    input's, so that it counts the first pass's points as this step's)."""
     inp, tree, kids = start(mesh, marked, fam_marked, sch, fam, earlier)
     overlap_marks(inp, tree, kids)
     upgrades = Upgrades(inp, tree)

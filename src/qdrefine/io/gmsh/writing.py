@@ -265,15 +265,13 @@ def _write41(out, source: Chunks, binary: bool) -> None:
 
 def _element_rows(rows: NDArray[np.int64], first: int, cells: NDArray,
                   buffer: NDArray[np.int64] | None = None) -> NDArray[np.int64]:
-    """``(k, 1 + nodes) int64``: element tag ``first + row + 1`` and the 1-based nodes (in
-    the first ``k`` rows and ``1 + nodes`` columns of ``buffer`` when given)."""
+    """``(k, 1 + nodes) int64``: element tag ``first + row + 1`` and the 1-based nodes (a
+    contiguous view of the front of ``buffer`` when given)."""
     width = 1 + cells.shape[1]
     if buffer is None:
         block = np.empty((len(rows), width), np.int64)
     else:
-        block = buffer[:len(rows), :width]
-        if width < buffer.shape[1]:  # lines: a contiguous (k, 3) view of the same memory
-            block = buffer.reshape(-1)[:len(rows) * width].reshape(len(rows), width)
+        block = buffer.reshape(-1)[:len(rows) * width].reshape(len(rows), width)
     block[:, 0] = rows
     block[:, 0] += first + 1
     block[:, 1:] = cells
