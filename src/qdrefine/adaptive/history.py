@@ -44,8 +44,7 @@ def families_of(mesh: Mesh, k: int) -> tuple[Mesh, Families, NDArray[np.int64] |
     if rows is None or not (rows[:, 0] >= 0).any():
         return mesh, Families.empty(m, k), None
     green = np.flatnonzero(rows[:, 0] >= 0)
-    parent_rows, family = np.unique(_rotated(rows[green]), axis=0, return_inverse=True)
-    family = family.reshape(-1)
+    parent_rows, family = _unique_rows(_rotated(rows[green]))
     first = np.full(parent_rows.shape[0], m, dtype=np.int64)
     np.minimum.at(first, family, green)
     key = np.arange(m, dtype=np.int64)
@@ -56,9 +55,7 @@ def families_of(mesh: Mesh, k: int) -> tuple[Mesh, Families, NDArray[np.int64] |
     else:
         mesh = _reordered(mesh, order)
         green = np.flatnonzero(mesh.transitions[:, 0] >= 0)
-        parent_rows, family = np.unique(_rotated(mesh.transitions[green]), axis=0,
-                                        return_inverse=True)
-        family = family.reshape(-1)
+        parent_rows, family = _unique_rows(_rotated(mesh.transitions[green]))
     # families numbered by first member, as the refinement numbers them
     first = np.full(parent_rows.shape[0], m, dtype=np.int64)
     np.minimum.at(first, family, green)
@@ -88,6 +85,31 @@ def _rotated(rows: NDArray[np.int64]) -> NDArray[np.int64]:
     """Each row rotated to start at its smallest id (the same triangle, one spelling)."""
     shift = np.argmin(rows, axis=1)[:, None]
     return np.take_along_axis(rows, (shift + np.arange(3)) % 3, axis=1)
+
+
+def _unique_rows(rows: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """``np.unique(rows, axis=0, return_inverse=True)`` for ``rows (R, 3)`` of non-negative
+    ids, by one ``lexsort`` (``unique`` with an axis sorts rows as opaque records, several
+    times slower). Equal rows usually come in runs (a family's members are consecutive):
+    only the runs' rows are sorted then."""
+    run = np.ones(rows.shape[0], dtype=bool)
+    run[1:] = (rows[1:] != rows[:-1]).any(axis=1)
+    heads = np.flatnonzero(run)
+    uniq, inverse = _sorted_unique_rows(rows[heads])
+    if uniq.shape[0] == heads.size:  # no row in two runs
+        return uniq, inverse[np.cumsum(run) - 1]
+    return _sorted_unique_rows(rows)
+
+
+def _sorted_unique_rows(rows: NDArray[np.int64]) -> tuple[NDArray[np.int64],
+                                                          NDArray[np.int64]]:
+    order = np.lexsort((rows[:, 2], rows[:, 1], rows[:, 0]))
+    srt = rows[order]
+    new = np.ones(srt.shape[0], dtype=bool)
+    new[1:] = (srt[1:] != srt[:-1]).any(axis=1)
+    inverse = np.empty(srt.shape[0], dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    return srt[new], inverse
 
 
 def _reordered(mesh: Mesh, order: NDArray[np.int64]) -> Mesh:
@@ -122,8 +144,10 @@ def _stencils(mesh: Mesh, parent_rows: NDArray[np.int64], member: NDArray[np.int
     tri = np.flatnonzero(member >= 0)
     fam = np.repeat(member[tri], 3)
     vert = mesh.triangles[tri].astype(np.int64).reshape(-1)
-    pairs = np.unique(np.stack([fam, vert], axis=1), axis=0)
-    fam, vert = pairs[:, 0], pairs[:, 1]
+    n = max(mesh.n_points, 1)  # (family, vertex) pairs as one key: f * n + v < F * N
+    pairs = np.sort(fam * n + vert)  # nearly sorted already: families by first member
+    pairs = pairs[np.r_[True, pairs[1:] != pairs[:-1]]]
+    fam, vert = pairs // n, pairs % n
     corner = (corners[fam] == vert[:, None]).any(axis=1)
     fam, vert = fam[~corner], vert[~corner]
     hit = (mesh.points[vert][:, None, :] == expected[fam]).all(axis=2)  # (P, S - 3)
