@@ -671,3 +671,39 @@ def test_a_step_on_a_window_is_the_step_on_the_whole_mesh(scheme, marks, monkeyp
     assert calls  # windows were used (a window over 30% of the mesh is given up)
     if marks == "scattered" and scheme == "7t-qd":
         assert len(calls) > 4  # and a window regrown where its rim was split
+
+
+@pytest.mark.parametrize("name, scheme, fraction", [
+    ("plate_with_hole", "7t-qd", 0.01), ("boundary_layer", "7t-qd", 0.02),
+    ("step", "7t-le", 0.01), ("l_shape", "4t-le", 0.03), ("graded", "7t-d", 0.01)])
+def test_scattered_marks_start_from_the_reached_triangles(name, scheme, fraction,
+                                                          monkeypatch):
+    """Scattered marks on a mesh without history: two rings around every mark would cover
+    much of the mesh, so the window starts from the estimate of what the step reaches
+    (``adaptive/reach.py``); the step equals the whole-mesh step bit for bit, the window
+    is much smaller than the rings, and on meshes without thin triangles the estimate
+    holds every triangle the step changes (one window, not regrown)."""
+    from qdrefine.adaptive import reach, window
+
+    base = refine(examples.gmsh_mesh(name), scheme, 2)
+    marked = marking.mark_random(base, fraction, seed=3)
+    sizes, estimates = [], []
+    sub_step, estimate = window._sub_step, reach.reached_triangles
+    monkeypatch.setattr(window, "_sub_step",
+                        lambda mesh, w, *a: sizes.append(int(w.sum())) or sub_step(mesh, w, *a))
+    monkeypatch.setattr(window, "reached_triangles",
+                        lambda *a: estimates.append(estimate(*a)) or estimates[-1])
+    monkeypatch.setattr(window, "WHOLE_BELOW", 0)
+    a, pa = refine_with_parents(base, scheme, marked=marked)
+    monkeypatch.setattr(window, "WHOLE_BELOW", 10**9)
+    b, pb = refine_with_parents(base, scheme, marked=marked)
+    for field in ("points", "triangles", "cell_tags", "edges", "edge_tags", "transitions"):
+        np.testing.assert_array_equal(getattr(a, field), getattr(b, field), err_msg=field)
+    np.testing.assert_array_equal(pa, pb)
+    assert len(estimates) == 1 and sizes
+    rings = window._grown(base.triangles, base.n_points, marked, 2)
+    assert sizes[0] < 0.6 * rings.sum()
+    changed = np.bincount(pb, minlength=base.n_triangles) != 1
+    assert not (changed & ~estimates[0]).any() or name == "boundary_layer"
+    if name != "boundary_layer":
+        assert len(sizes) == 1

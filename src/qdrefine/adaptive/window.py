@@ -6,9 +6,11 @@ The step's decisions are local (closure along split edges, patterns by a triangl
 shape), so on a window whose rim keeps all its edges unsplit the step does exactly what it
 does on the whole mesh; the window's points are renumbered in increasing global order, so
 split edges, new points and centroids come out in the same order too, and the stitched
-result is identical to the whole-mesh step (tested). The only passes over the whole mesh
-are linear: the rings (compiled, by vertex flags), the vertex-to-triangle table (built only
-once a window is small enough to try) and the copy of the untouched triangles.
+result is identical to the whole-mesh step (tested). The window starts from an estimate
+of what the step reaches (:mod:`~qdrefine.adaptive.reach`) on a mesh without transitions,
+from two vertex rings around the marks otherwise. The only passes over the whole mesh are
+linear and compiled: the vertex-to-triangle table, the rings (by vertex flags) and the copy
+of the untouched triangles.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from ..numbering import incidence
 from ..schemes import Scheme
 from .edgekeys import KEY, edge_keys, lookup
 from .families import Families
+from .reach import reached_triangles
 from .step import Step, step
 
 #: Below this many triangles the step runs on the whole mesh.
@@ -39,8 +42,14 @@ def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.
         return step(mesh, marked, fam_marked, sch, fam)
     seed = marked.copy()
     seed[fam.member >= 0] |= fam_marked[fam.member[fam.member >= 0]]
-    window = _grown(mesh.triangles, mesh.n_points, seed, 2)
     start = tris_of = None  # the vertex-to-triangle table, built once a window is tried
+    if fam.n_families == 0:
+        # an estimate of what the step reaches (a few triangles per mark, while two rings
+        # around scattered marks cover much of the mesh)
+        start, tris_of = vertex_triangles(mesh.triangles, mesh.n_points)
+        window = reached_triangles(mesh, seed, sch, start, tris_of)
+    else:
+        window = _grown(mesh.triangles, mesh.n_points, seed, 2)
     while True:
         window = _whole_families(window, fam)
         if window.sum() > WHOLE_ABOVE * m:
@@ -164,12 +173,12 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     total = int(count.sum())
     keep = np.flatnonzero(~window)
     parents = np.empty(total, dtype=np.int64)
-    parents[first[keep]] = keep
-    parents[out_rows] = rows[res.parents]
     points = np.concatenate([mesh.points, sub.points[n_sub:]])
     dtype = index_dtype(points.shape[0])
     tris = np.empty((total, 3), dtype=dtype)
-    tris[first[keep]] = mesh.triangles[keep]
+    member = np.full(total, -1, dtype=np.int64)
+    _copy_outside(window, first, mesh.triangles, fam.member, tris, parents, member)
+    parents[out_rows] = rows[res.parents]
     tris[out_rows] = to_global[sub.triangles]
     tags = None
     if mesh.cell_tags is not None:
@@ -185,10 +194,9 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
                   for name, v in mesh.point_data.items()}
     out = Mesh._trusted(points, tris, tags, None, None, point_data, cell_data,
                         mesh.physical_names)
-    # families: the untouched ones keep their members, the window's come from the step
-    member = np.full(total, -1, dtype=np.int64)
+    # families: the untouched ones keep their members (copied above), the window's come
+    # from the step
     outside = fam.member[keep]
-    member[first[keep]] = outside
     old = np.unique(outside[outside >= 0])
     member[out_rows] = np.where(res.families.member >= 0,
                                 fam.n_families + res.families.member, -1)
@@ -209,6 +217,19 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     inside[out_rows] = res.inside
     return Step(out, parents, families, inside, to_global[res.centroids],
                 *_global_registry(res, to_global))
+
+
+@njit(cache=True)
+def _copy_outside(window, first, triangles, member, tris, parents, member_out):
+    """Each triangle outside the window to its output row ``first[t]``: its vertex row,
+    itself as parent, its family (one pass; most of the mesh when marks are scattered)."""
+    for t in range(window.shape[0]):
+        if not window[t]:
+            r = first[t]
+            for j in range(3):
+                tris[r, j] = triangles[t, j]
+            parents[r] = t
+            member_out[r] = member[t]
 
 
 def _rank_within(parents: NDArray[np.int64]) -> NDArray[np.int64]:
