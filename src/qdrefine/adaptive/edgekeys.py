@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 #: Edge key ``min * KEY + max`` of an edge between two point ids (ids below ``2**31``).
@@ -22,6 +23,25 @@ def lookup(keys: NDArray[np.int64], query: NDArray[np.int64]) -> NDArray[np.int6
         return np.full(query.shape, -1, dtype=np.int64)
     pos = np.minimum(np.searchsorted(keys, query), keys.size - 1)
     return np.where(keys[pos] == query, pos, -1)
+
+
+def lookup_sorted(keys: NDArray[np.int64], query: NDArray[np.int64]) -> NDArray[np.int64]:
+    """:func:`lookup` for an increasing ``query`` (e.g. the keys of edges numbered in
+    sorted order): one merge of the two arrays instead of a binary search per query."""
+    out = np.empty(query.shape[0], dtype=np.int64)
+    _merge_lookup(keys, query, out)
+    return out
+
+
+@njit(cache=True)
+def _merge_lookup(keys, query, out):
+    i = 0
+    for q in range(query.shape[0]):
+        if q and query[q] < query[q - 1]:
+            raise ValueError("lookup_sorted: the queries are not increasing")
+        while i < keys.shape[0] and keys[i] < query[q]:
+            i += 1
+        out[q] = i if i < keys.shape[0] and keys[i] == query[q] else -1
 
 
 def oriented(pts: NDArray[np.int64], a: NDArray, b: NDArray) -> NDArray[np.int64]:

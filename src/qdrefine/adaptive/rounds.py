@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from ..kernels import number_edges
 from ..partition import partition_many
 from ..schemes import Scheme
-from .edgekeys import edge_keys, lookup
+from .edgekeys import edge_keys, lookup, lookup_sorted
 from .labels import MN, NO, OM, canonical_edges, edge_split_codes
 from .longest_edge import closure
 from .patterns import canonical_corners, min_angles, quality, stencil_coordinates
@@ -55,11 +55,11 @@ def plan_splits(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.in
     triangles = tree.triangles[leaves]
     edges, tri_edges, counts = number_edges(triangles, tree.points.shape[0])
     keys = edge_keys(edges[:, 0], edges[:, 1])
-    pos = lookup(tree.reg_keys, keys)
+    pos = lookup_sorted(tree.reg_keys, keys)  # edges are numbered in sorted order
     labels = tree.labels[leaves]
     ce = canonical_edges(labels, tri_edges)
     split, _ = closure(ce, tree.mark[leaves], edges.shape[0], presplit=pos >= 0,
-                       earlier=lookup(tree.earlier_keys, keys) >= 0,
+                       earlier=lookup_sorted(tree.earlier_keys, keys) >= 0,
                        upgrade=None if upgrades is None else
                        lambda t, code: upgrades(leaves[t], code), layers=UPGRADE_LAYERS)
     return SplitPlan(leaves, triangles, edges, tri_edges, counts, keys, pos, labels, ce, split)
