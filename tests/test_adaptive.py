@@ -695,15 +695,22 @@ def test_scattered_marks_start_from_the_reached_triangles(name, scheme, fraction
                         lambda *a: estimates.append(estimate(*a)) or estimates[-1])
     monkeypatch.setattr(window, "WHOLE_BELOW", 0)
     a, pa = refine_with_parents(base, scheme, marked=marked)
-    monkeypatch.setattr(window, "WHOLE_BELOW", 10**9)
+    monkeypatch.setattr(window, "WHOLE_ABOVE", 0.0)  # the whole mesh, with the verdicts
+    c, pc = refine_with_parents(base, scheme, marked=marked)
+    monkeypatch.setattr(window, "WHOLE_BELOW", 10**9)  # the whole mesh, no estimate
     b, pb = refine_with_parents(base, scheme, marked=marked)
     for field in ("points", "triangles", "cell_tags", "edges", "edge_tags", "transitions"):
         np.testing.assert_array_equal(getattr(a, field), getattr(b, field), err_msg=field)
+        np.testing.assert_array_equal(getattr(c, field), getattr(b, field), err_msg=field)
     np.testing.assert_array_equal(pa, pb)
-    assert len(estimates) == 1 and sizes
+    np.testing.assert_array_equal(pc, pb)
+    assert len(estimates) == 2 and len(sizes) >= 1
     rings = window._grown(base.triangles, base.n_points, marked, 2)
     assert sizes[0] < 0.6 * rings.sum()
+    reached, verdicts = estimates[0]
     changed = np.bincount(pb, minlength=base.n_triangles) != 1
-    assert not (changed & ~estimates[0]).any() or name == "boundary_layer"
+    assert not (changed & ~reached).any() or name == "boundary_layer"
     if name != "boundary_layer":
         assert len(sizes) == 1
+    if scheme.startswith("7t"):  # upgrades judged on the way
+        assert (verdicts[reached & ~marked, 0] >= 0).any()

@@ -73,7 +73,7 @@ def emit_step(inp: StepInput, tree: Tree, cl: SplitPlan
             centroids.append(coords[used, -1])
             centroid_of.append(ids[used, :3])
             ids = np.concatenate([ids, x], axis=1)
-        tris[blocks(start[sel], nk[sel])] = pattern(ids, cl.labels[sel], k, c, choice)[0]
+        pattern(ids, cl.labels[sel], k, c, choice, tris, start[sel])
         new_fam.append((sel, ids))
     points = np.concatenate(centroids) if len(centroids) > 1 else points
     rows = blocks(start[kept], nk[kept])

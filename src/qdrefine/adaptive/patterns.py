@@ -291,15 +291,35 @@ def stencil_ids(t: NDArray, labels: NDArray[np.int8], ce: NDArray[np.int64],
 
 
 def pattern(ids: NDArray[np.int64], labels: NDArray[np.int8], k: int, code: int,
-            choice: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+            choice: NDArray[np.int64], out: NDArray | None = None,
+            rows: NDArray[np.int64] | None = None) -> NDArray:
     """Children of triangles with split code ``code`` (not 0 or full) in the chosen
-    candidates: ``(children (sum count, 3), count (G,))``; ``ids (G, S)`` are the global
-    ids of :func:`pattern_stencil` (the centroid's where it is used)."""
+    candidates; ``ids (G, S)`` are the global ids of :func:`pattern_stencil` (the
+    centroid's where it is used). Written to ``out[rows[g]:rows[g] + count]`` for
+    triangle ``g``, where given; else returned as ``(sum count, 3)`` int64 (the
+    children of each triangle in turn)."""
     tris, cand, count = tables(k, code)
-    local = np.concatenate([tris, np.zeros((1, 3), np.int8)])[cand[choice]].astype(np.int64)
+    local = np.concatenate([tris, np.zeros((1, 3), np.int8)])[cand].astype(np.int64)
     flip = (labels[:, 1].astype(np.int64) - labels[:, 0]) % 3 != 1
-    local[flip] = local[flip][:, :, [0, 2, 1]]
-    kids = ids[np.arange(ids.shape[0])[:, None, None], local]
-    n = count[choice]
-    keep = np.arange(cand.shape[1]) < n[:, None]
-    return kids[keep], n
+    if out is None:
+        n = count[choice]
+        rows = np.cumsum(n) - n
+        out = np.empty((int(n.sum()), 3), dtype=np.int64)
+    _place(out, np.ascontiguousarray(rows, dtype=np.int64),
+           np.ascontiguousarray(ids, dtype=np.int64), local, count,
+           np.ascontiguousarray(choice, dtype=np.int64), flip)
+    return out
+
+
+@njit(cache=True)
+def _place(out, rows, ids, local, count, choice, flip):
+    # a mirrored triangle (labels clockwise) lists its children's last two vertices swapped
+    for g in range(ids.shape[0]):
+        c, r = choice[g], rows[g]
+        for t in range(count[c]):
+            a, b, d = local[c, t, 0], local[c, t, 1], local[c, t, 2]
+            if flip[g]:
+                b, d = d, b
+            out[r + t, 0] = ids[g, a]
+            out[r + t, 1] = ids[g, b]
+            out[r + t, 2] = ids[g, d]

@@ -33,11 +33,19 @@ INNER_ROUNDS = 8
 
 def reached_triangles(mesh: Mesh, marked: NDArray[np.bool_], sch: Scheme,
                       start: NDArray[np.int64], tris_of: NDArray[np.int64]
-                      ) -> NDArray[np.bool_]:
-    """``(M,) bool``: the triangles that the step of ``marked`` with scheme ``sch`` is
-    estimated to change, and those across an upgrade that is not made, for a mesh without
-    transition families, given its vertex-to-triangle table
-    ``tris_of[start[v]:start[v + 1]]``."""
+                      ) -> tuple[NDArray[np.bool_], NDArray[np.int8]]:
+    """The triangles that the step of ``marked`` with scheme ``sch`` is estimated to
+    change, and those across an upgrade that is not made, for a mesh without transition
+    families, given its vertex-to-triangle table ``tris_of[start[v]:start[v + 1]]``.
+
+    Returns
+    -------
+    window : (M,) bool
+    verdicts : (M, 2) int8
+        The upgrade rule's verdicts judged on the way, as
+        :class:`~qdrefine.adaptive.rounds.Upgrades` keeps them (by ``MN``, by ``OM``; 1
+        upgraded, 0 not, -1 not judged): the step can start from them.
+    """
     m = mesh.n_triangles
     points = np.ascontiguousarray(mesh.points, dtype=np.float64)
     triangles = mesh.triangles
@@ -45,6 +53,7 @@ def reached_triangles(mesh: Mesh, marked: NDArray[np.bool_], sch: Scheme,
     split = np.zeros((m, 3), dtype=np.bool_)  # local edge (v_j, v_j+1) split
     dirty = np.zeros(m, dtype=np.bool_)  # split edges changed since the last verdict
     across = np.zeros(m, dtype=np.bool_)  # across an upgrade's NO edge, not reached
+    verdicts = np.full((m, 2), -1, dtype=np.int8)
     seeds = np.flatnonzero(marked)
     whole = np.ones(seeds.size, dtype=np.bool_)
     for r in range(UPGRADE_LAYERS + 1 + INNER_ROUNDS):
@@ -55,20 +64,23 @@ def reached_triangles(mesh: Mesh, marked: NDArray[np.bool_], sch: Scheme,
         dirty[:] = False
         if not todo.size:
             break
-        up, no_edge = _upgrades(points, triangles[todo], split[todo], sch)
+        up, no_edge = _upgrades(points, triangles, todo, split[todo], sch, verdicts)
         seeds = _split_no(triangles, start, tris_of, todo[up], no_edge[up], state, split,
                           dirty, across, r < UPGRADE_LAYERS)
         whole = np.zeros(seeds.size, dtype=np.bool_)
         if not (seeds.size or dirty.any()):
             break
-    return state[:, 0] | across
+    return state[:, 0] | across, verdicts
 
 
-def _upgrades(points: NDArray[np.float64], rows: NDArray, split: NDArray[np.bool_],
-              sch: Scheme) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
-    """Which of the triangles ``rows (G, 3)`` with local split edges ``split (G, 3)`` the
-    upgrade rule gives ``NO`` split, and the local index of their ``NO`` edge."""
-    rows = rows.astype(np.int64)
+def _upgrades(points: NDArray[np.float64], triangles: NDArray, todo: NDArray[np.int64],
+              split: NDArray[np.bool_], sch: Scheme, verdicts: NDArray[np.int8]
+              ) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
+    """Which of the triangles ``todo (G,)`` with local split edges ``split (G, 3)`` the
+    upgrade rule gives ``NO`` split, and the local index of their ``NO`` edge; the
+    verdicts not judged yet are judged (as :class:`~qdrefine.adaptive.rounds.Upgrades`
+    judges them) and kept in ``verdicts (M, 2)``."""
+    rows = triangles[todo].astype(np.int64)
     labels = canonical_labels(points, rows).astype(np.int64)
     # canonical edge e runs from labels[e] to labels[e + 1]: local edge a when b == a + 1
     local = np.empty((rows.shape[0], 3), dtype=np.int64)
@@ -77,19 +89,21 @@ def _upgrades(points: NDArray[np.float64], rows: NDArray, split: NDArray[np.bool
         local[:, e] = np.where(b == (a + 1) % 3, a, b)
     g = np.arange(rows.shape[0])
     s_mn, s_no, s_om = (split[g, local[:, e]] for e in range(3))
-    out = np.zeros(rows.shape[0], dtype=bool)
-    idx = np.flatnonzero(s_mn & ~s_no)
-    if idx.size:
-        corners = canonical_corners(points, rows[idx], labels[idx])
-        coords = stencil_coordinates(corners, 2)
-        own = min_angles(corners)
-        verdict = upgraded(quality(coords, 2, MN), quality(coords, 2, MN | NO), own)
-        om = s_om[idx]
-        if om.any():
-            verdict[om] |= upgraded(quality(coords[om], 2, MN | OM),
-                                    full_quality(corners[om], sch), own[om])
-        out[idx] = verdict
-    return out, local[:, 1]
+    cand = s_mn & ~s_no
+    for col, need in ((0, cand), (1, cand & s_om)):
+        idx = np.flatnonzero(need & (verdicts[todo, col] < 0))
+        if idx.size:
+            corners = canonical_corners(points, rows[idx], labels[idx])
+            coords = stencil_coordinates(corners, 2)
+            own = min_angles(corners)
+            if col == 0:
+                verdict = upgraded(quality(coords, 2, MN), quality(coords, 2, MN | NO), own)
+            else:
+                verdict = upgraded(quality(coords, 2, MN | OM), full_quality(corners, sch),
+                                   own)
+            verdicts[todo[idx], col] = verdict
+    up = cand & ((verdicts[todo, 0] == 1) | (s_om & (verdicts[todo, 1] == 1)))
+    return up, local[:, 1]
 
 
 @njit(cache=True)

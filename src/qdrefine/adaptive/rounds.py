@@ -128,9 +128,13 @@ class Upgrades:
     need.
     """
 
-    def __init__(self, inp: StepInput, tree: Tree) -> None:
+    def __init__(self, inp: StepInput, tree: Tree, known: NDArray[np.int8] | None = None
+                 ) -> None:
         self.inp, self.tree = inp, tree
-        self.verdicts = np.full((0, 2), -1, dtype=np.int8)  # (nodes, [by MN, by OM])
+        # (nodes, [by MN, by OM]): 1 upgraded, 0 not, -1 not judged yet; ``known`` gives
+        # those of the first nodes (e.g. judged by the window's estimate)
+        self.verdicts = np.full((0, 2), -1, dtype=np.int8) if known is None else \
+            np.array(known, dtype=np.int8)
 
     def __call__(self, nodes: NDArray[np.int64], code: NDArray[np.int64]) -> NDArray[np.bool_]:
         if self.inp.k != 2:

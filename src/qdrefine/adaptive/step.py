@@ -49,12 +49,14 @@ class Step:
 
 
 def step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_], sch: Scheme,
-         fam: Families) -> Step:
+         fam: Families, verdicts: NDArray[np.int8] | None = None) -> Step:
     """One refinement step of ``mesh`` with transition families ``fam`` (``marked``
     triangles and ``fam_marked`` families partitioned), with the follow-up step that
-    partitions the children meeting marked members."""
+    partitions the children meeting marked members. ``verdicts (M, 2)``: upgrade
+    verdicts of ``mesh``'s triangles known already (:class:`~qdrefine.adaptive.rounds.
+    Upgrades`), for a mesh without families."""
     out, parents, fam2, inside, again, (keys, pts) = _one_step(mesh, marked, fam_marked, sch,
-                                                               fam)
+                                                               fam, verdicts=verdicts)
     centroids = fam.centroids()
     if again.any():
         fam_again = np.zeros(fam2.n_families, dtype=bool)
@@ -69,13 +71,16 @@ def step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_], s
 
 
 def _one_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_],
-              sch: Scheme, fam: Families, earlier: NDArray[np.int64] | None = None):
+              sch: Scheme, fam: Families, earlier: NDArray[np.int64] | None = None,
+              verdicts: NDArray[np.int8] | None = None):
     """One pass; ``earlier``: sorted keys of the edges that had points before the step
     (default: ``fam``'s, right for the first pass; the follow-up pass gets the step
     input's, so that it counts the first pass's points as this step's)."""
     inp, tree, kids = start(mesh, marked, fam_marked, sch, fam, earlier)
     overlap_marks(inp, tree, kids)
-    upgrades = Upgrades(inp, tree)
+    if verdicts is not None and fam.n_families:
+        raise ValueError("internal error: known verdicts are for a mesh without families")
+    upgrades = Upgrades(inp, tree, verdicts)  # the tree's first nodes: mesh's triangles
     while True:
         cl = plan_splits(tree, upgrades)
         if not conflicts(inp, tree, cl):

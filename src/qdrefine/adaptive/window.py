@@ -42,21 +42,21 @@ def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.
         return step(mesh, marked, fam_marked, sch, fam)
     seed = marked.copy()
     seed[fam.member >= 0] |= fam_marked[fam.member[fam.member >= 0]]
-    start = tris_of = None  # the vertex-to-triangle table, built once a window is tried
+    start = tris_of = verdicts = None  # the vertex-to-triangle table: once a window is tried
     if fam.n_families == 0:
         # an estimate of what the step reaches (a few triangles per mark, while two rings
         # around scattered marks cover much of the mesh)
         start, tris_of = vertex_triangles(mesh.triangles, mesh.n_points)
-        window = reached_triangles(mesh, seed, sch, start, tris_of)
+        window, verdicts = reached_triangles(mesh, seed, sch, start, tris_of)
     else:
         window = _grown(mesh.triangles, mesh.n_points, seed, 2)
     while True:
         window = _whole_families(window, fam)
         if window.sum() > WHOLE_ABOVE * m:
-            return step(mesh, marked, fam_marked, sch, fam)
+            return step(mesh, marked, fam_marked, sch, fam, verdicts)
         if start is None:
             start, tris_of = vertex_triangles(mesh.triangles, mesh.n_points)
-        res, verts = _sub_step(mesh, window, marked, fam_marked, sch, fam)
+        res, verts = _sub_step(mesh, window, marked, fam_marked, sch, fam, verdicts)
         to_global = np.concatenate([verts, mesh.n_points
                                     + np.arange(res.mesh.n_points - verts.size)])
         rim = _split_rim(mesh.triangles, start, tris_of, window, to_global, res)
@@ -105,10 +105,11 @@ def _whole_families(window: NDArray[np.bool_], fam: Families) -> NDArray[np.bool
 
 
 def _sub_step(mesh: Mesh, window: NDArray[np.bool_], marked: NDArray[np.bool_],
-              fam_marked: NDArray[np.bool_], sch: Scheme, fam: Families
-              ) -> tuple[Step, NDArray[np.int64]]:
+              fam_marked: NDArray[np.bool_], sch: Scheme, fam: Families,
+              verdicts: NDArray[np.int8] | None = None) -> tuple[Step, NDArray[np.int64]]:
     """The step on the window's triangles, with its points renumbered in increasing
-    global order; returns the step and the window's points ``verts`` (global ids)."""
+    global order; returns the step and the window's points ``verts`` (global ids).
+    ``verdicts (M, 2)``: upgrade verdicts known for a mesh without families."""
     rows = np.flatnonzero(window)
     tris = mesh.triangles[rows]
     in_window = np.zeros(mesh.n_points, dtype=bool)
@@ -128,7 +129,8 @@ def _sub_step(mesh: Mesh, window: NDArray[np.bool_], marked: NDArray[np.bool_],
     new_fam[used] = np.arange(used.size)
     sub_fam = Families(new_fam[member], to_local[fam.parent_triangles[used]],
                        to_local[fam.stencil[used]])
-    return step(sub, marked[rows], fam_marked[used], sch, sub_fam), verts
+    known = None if verdicts is None else verdicts[rows]
+    return step(sub, marked[rows], fam_marked[used], sch, sub_fam, known), verts
 
 
 def _split_rim(triangles: NDArray, start: NDArray[np.int64], tris_of: NDArray[np.int64],
