@@ -11,6 +11,7 @@ applied to the parent's vertices, so they are matched exactly.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from ..mesh import Mesh
@@ -73,12 +74,21 @@ def with_history(mesh: Mesh, families: Families) -> Mesh:
     when no triangle is a transition child)."""
     member = families.member
     rows = None
-    if (member >= 0).any():
-        rows = np.full((member.size, 3), -1, dtype=np.int64)
-        rows[member >= 0] = families.parent_triangles[member[member >= 0]]
+    if families.n_families:
+        rows = np.empty((member.size, 3), dtype=np.int64)
+        _parent_rows(member, families.parent_triangles, rows)
     return Mesh._trusted(mesh.points, mesh.triangles, mesh.cell_tags, mesh.edges,
                          mesh.edge_tags, mesh.point_data, mesh.cell_data,
                          mesh.physical_names, rows)
+
+
+@njit(cache=True)
+def _parent_rows(member, parent_triangles, rows):
+    """``rows[t]``: the parent row of member ``t``'s family, ``-1`` for other triangles."""
+    for t in range(member.shape[0]):
+        f = member[t]
+        for j in range(3):
+            rows[t, j] = parent_triangles[f, j] if f >= 0 else -1
 
 
 def _rotated(rows: NDArray[np.int64]) -> NDArray[np.int64]:

@@ -171,7 +171,6 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     count = np.ones(mesh.n_triangles, dtype=np.int64)
     count[rows] = np.bincount(res.parents, minlength=rows.size)
     first = np.cumsum(count) - count
-    out_rows = first[rows[res.parents]] + _rank_within(res.parents)
     total = int(count.sum())
     keep = np.flatnonzero(~window)
     parents = np.empty(total, dtype=np.int64)
@@ -180,8 +179,9 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     tris = np.empty((total, 3), dtype=dtype)
     member = np.full(total, -1, dtype=np.int64)
     _copy_outside(window, first, mesh.triangles, fam.member, tris, parents, member)
-    parents[out_rows] = rows[res.parents]
-    tris[out_rows] = to_global[sub.triangles]
+    out_rows = np.empty(sub.n_triangles, dtype=np.int64)
+    _place_window(first, rows, res.parents, sub.triangles, to_global, res.families.member,
+                  fam.n_families, tris, parents, member, out_rows)
     tags = None
     if mesh.cell_tags is not None:
         tags = mesh.cell_tags[parents]
@@ -200,8 +200,6 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     # from the step
     outside = fam.member[keep]
     old = np.unique(outside[outside >= 0])
-    member[out_rows] = np.where(res.families.member >= 0,
-                                fam.n_families + res.families.member, -1)
     ids = np.concatenate([old, fam.n_families + np.arange(res.families.n_families)])
     rows_all = np.concatenate([fam.parent_triangles[old], to_global[res.families.parent_triangles]])
     sten_all = np.concatenate([fam.stencil[old],
@@ -234,11 +232,22 @@ def _copy_outside(window, first, triangles, member, tris, parents, member_out):
             member_out[r] = member[t]
 
 
-def _rank_within(parents: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Position of each child among the children of its parent (``parents`` sorted)."""
-    idx = np.arange(parents.size)
-    starts = np.flatnonzero(np.r_[True, parents[1:] != parents[:-1]])
-    return idx - np.repeat(starts, np.diff(np.r_[starts, parents.size]))
+@njit(cache=True)
+def _place_window(first, rows, sub_parents, sub_triangles, to_global, sub_member, n_fam,
+                  tris, parents, member, out_rows):
+    """Each output triangle of the window's step to its row: after the earlier children of
+    its window parent (``sub_parents`` increasing), from that parent's first row; its
+    vertices in global ids, its parent, its family after the untouched ones."""
+    rank = 0
+    for i in range(sub_parents.shape[0]):
+        p = sub_parents[i]
+        rank = rank + 1 if i and p == sub_parents[i - 1] else 0
+        r = first[rows[p]] + rank
+        out_rows[i] = r
+        for j in range(3):
+            tris[r, j] = to_global[sub_triangles[i, j]]
+        parents[r] = rows[p]
+        member[r] = n_fam + sub_member[i] if sub_member[i] >= 0 else -1
 
 
 def _global_registry(res: Step, to_global: NDArray[np.int64]
