@@ -695,7 +695,8 @@ def test_scattered_marks_start_from_the_reached_triangles(name, scheme, fraction
                         lambda *a: estimates.append(estimate(*a)) or estimates[-1])
     monkeypatch.setattr(window, "WHOLE_BELOW", 0)
     a, pa = refine_with_parents(base, scheme, marked=marked)
-    monkeypatch.setattr(window, "WHOLE_ABOVE", 0.0)  # the whole mesh, with the verdicts
+    # over the marks, under the estimate: the whole mesh, with the estimate's verdicts
+    monkeypatch.setattr(window, "WHOLE_ABOVE", 1.5 * marked.mean())
     c, pc = refine_with_parents(base, scheme, marked=marked)
     monkeypatch.setattr(window, "WHOLE_BELOW", 10**9)  # the whole mesh, no estimate
     b, pb = refine_with_parents(base, scheme, marked=marked)
@@ -705,6 +706,7 @@ def test_scattered_marks_start_from_the_reached_triangles(name, scheme, fraction
     np.testing.assert_array_equal(pa, pb)
     np.testing.assert_array_equal(pc, pb)
     assert len(estimates) == 2 and len(sizes) >= 1
+    assert estimates[1][0].mean() > 1.5 * marked.mean()  # so it was given up
     rings = window._grown(base.triangles, base.n_points, marked, 2)
     assert sizes[0] < 0.6 * rings.sum()
     reached, verdicts = estimates[0]
@@ -714,3 +716,62 @@ def test_scattered_marks_start_from_the_reached_triangles(name, scheme, fraction
         assert len(sizes) == 1
     if scheme.startswith("7t"):  # upgrades judged on the way
         assert (verdicts[reached & ~marked, 0] >= 0).any()
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(0, 300), max_size=60), st.lists(st.integers(0, 320), max_size=60))
+def test_lookup_sorted_is_lookup_for_increasing_queries(keys, query):
+    from qdrefine.adaptive.edgekeys import lookup, lookup_sorted
+
+    k = np.unique(np.array(keys, dtype=np.int64))
+    q = np.unique(np.array(query, dtype=np.int64))
+    np.testing.assert_array_equal(lookup_sorted(k, q), lookup(k, q))
+    if q.size > 1:
+        with pytest.raises(ValueError, match="not increasing"):
+            lookup_sorted(k, q[::-1].copy())
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.tuples(st.integers(0, 5), st.integers(0, 5), st.integers(0, 5)),
+                          st.integers(1, 4)), min_size=1, max_size=20), st.booleans())
+def test_unique_rows_is_numpy_unique(runs, shuffle):
+    """Rows in runs (a family's members), a row possibly in two runs, or shuffled."""
+    from qdrefine.adaptive.history import _unique_rows
+
+    rows = np.array([r for r, n in runs for _ in range(n)], dtype=np.int64)
+    if shuffle:
+        rows = rows[np.random.default_rng(len(rows)).permutation(len(rows))]
+    uniq, inverse = np.unique(rows, axis=0, return_inverse=True)
+    got_uniq, got_inverse = _unique_rows(rows)
+    np.testing.assert_array_equal(got_uniq, uniq)
+    np.testing.assert_array_equal(got_inverse, inverse.reshape(-1))
+
+
+@pytest.mark.parametrize("k", [1, 2])
+def test_pattern_writes_the_same_children_into_given_rows(k):
+    """``pattern(..., out, rows)`` writes exactly the children it returns, mirrored
+    triangles (clockwise labels) included, and nothing else."""
+    from qdrefine.adaptive.patterns import PARTIAL, pattern, tables
+
+    rng = np.random.default_rng(k)
+    perms = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]],
+                     dtype=np.int8)
+    for code in PARTIAL:
+        tris, cand, count = tables(k, code)
+        g = 30
+        ids = rng.integers(0, 10**6, size=(g, int(tris.max()) + 1)).astype(np.int64)
+        labels = perms[rng.integers(0, 6, g)]
+        choice = rng.integers(0, cand.shape[0], g)
+        kids = pattern(ids, labels, k, code, choice)
+        n = count[choice]
+        assert kids.shape == (n.sum(), 3)
+        for i in range(g):  # each child is a candidate triangle of the stencil, oriented
+            local = tris[cand[choice[i], :n[i]]]
+            if (labels[i, 1] - labels[i, 0]) % 3 != 1:
+                local = local[:, [0, 2, 1]]
+            np.testing.assert_array_equal(kids[n[:i].sum():n[:i + 1].sum()], ids[i][local])
+        out = np.full((n.sum() + 7, 3), -9, dtype=np.int64)
+        rows = 3 + np.cumsum(n) - n
+        pattern(ids, labels, k, code, choice, out, rows)
+        np.testing.assert_array_equal(out[3:3 + n.sum()], kids)
+        assert (out[:3] == -9).all() and (out[3 + n.sum():] == -9).all()

@@ -35,6 +35,7 @@ def lookup_sorted(keys: NDArray[np.int64], query: NDArray[np.int64]) -> NDArray[
 
 @njit(cache=True)
 def _merge_lookup(keys, query, out):
+    """:func:`lookup_sorted` into ``out``: one pass over both sorted arrays."""
     i = 0
     for q in range(query.shape[0]):
         if q and query[q] < query[q - 1]:

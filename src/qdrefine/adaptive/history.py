@@ -98,10 +98,10 @@ def _rotated(rows: NDArray[np.int64]) -> NDArray[np.int64]:
 
 
 def _unique_rows(rows: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """``np.unique(rows, axis=0, return_inverse=True)`` for ``rows (R, 3)`` of non-negative
-    ids, by one ``lexsort`` (``unique`` with an axis sorts rows as opaque records, several
-    times slower). Equal rows usually come in runs (a family's members are consecutive):
-    only the runs' rows are sorted then."""
+    """``np.unique(rows, axis=0, return_inverse=True)`` for ``rows (R, 3)`` of ids, by one
+    ``lexsort`` (``unique`` with an axis sorts rows as opaque records, several times
+    slower). Equal rows usually come in runs (a family's members are consecutive): only
+    the runs' rows are sorted then."""
     run = np.ones(rows.shape[0], dtype=bool)
     run[1:] = (rows[1:] != rows[:-1]).any(axis=1)
     heads = np.flatnonzero(run)
@@ -113,6 +113,7 @@ def _unique_rows(rows: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np
 
 def _sorted_unique_rows(rows: NDArray[np.int64]) -> tuple[NDArray[np.int64],
                                                           NDArray[np.int64]]:
+    """:func:`_unique_rows` by sorting every row."""
     order = np.lexsort((rows[:, 2], rows[:, 1], rows[:, 0]))
     srt = rows[order]
     new = np.ones(srt.shape[0], dtype=bool)
@@ -154,7 +155,8 @@ def _stencils(mesh: Mesh, parent_rows: NDArray[np.int64], member: NDArray[np.int
     tri = np.flatnonzero(member >= 0)
     fam = np.repeat(member[tri], 3)
     vert = mesh.triangles[tri].astype(np.int64).reshape(-1)
-    n = max(mesh.n_points, 1)  # (family, vertex) pairs as one key: f * n + v < F * N
+    # (family, vertex) pairs as one key: f * n + v < F * N <= 2^31 * 2^31, no overflow
+    n = max(mesh.n_points, 1)
     pairs = np.sort(fam * n + vert)  # nearly sorted already: families by first member
     pairs = pairs[np.r_[True, pairs[1:] != pairs[:-1]]]
     fam, vert = pairs // n, pairs % n

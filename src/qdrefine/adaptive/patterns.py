@@ -313,7 +313,9 @@ def pattern(ids: NDArray[np.int64], labels: NDArray[np.int8], k: int, code: int,
 
 @njit(cache=True)
 def _place(out, rows, ids, local, count, choice, flip):
-    # a mirrored triangle (labels clockwise) lists its children's last two vertices swapped
+    """:func:`pattern`'s children of triangle ``g``, candidate ``choice[g]`` of ``local
+    (C, T, 3)`` (stencil indices), to ``out[rows[g]:]``; a mirrored triangle (``flip``:
+    labels clockwise) lists its children's last two vertices swapped."""
     for g in range(ids.shape[0]):
         c, r = choice[g], rows[g]
         for t in range(count[c]):

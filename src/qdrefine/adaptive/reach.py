@@ -23,9 +23,8 @@ from ..kernels import canonical
 from ..mesh import Mesh
 from ..predicates import SCRATCH
 from ..schemes import Scheme
-from .labels import MN, NO, OM, canonical_labels
-from .patterns import canonical_corners, min_angles, quality, stencil_coordinates
-from .rounds import UPGRADE_LAYERS, full_quality, upgraded
+from .labels import canonical_labels
+from .rounds import UPGRADE_LAYERS, upgrade_verdicts
 
 #: Upgrade rounds after the last layer (upgrades that bring no new triangle in).
 INNER_ROUNDS = 8
@@ -78,8 +77,8 @@ def _upgrades(points: NDArray[np.float64], triangles: NDArray, todo: NDArray[np.
               ) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
     """Which of the triangles ``todo (G,)`` with local split edges ``split (G, 3)`` the
     upgrade rule gives ``NO`` split, and the local index of their ``NO`` edge; the
-    verdicts not judged yet are judged (as :class:`~qdrefine.adaptive.rounds.Upgrades`
-    judges them) and kept in ``verdicts (M, 2)``."""
+    verdicts not judged yet are judged (by the step's own
+    :func:`~qdrefine.adaptive.rounds.upgrade_verdicts`) and kept in ``verdicts (M, 2)``."""
     rows = triangles[todo].astype(np.int64)
     labels = canonical_labels(points, rows).astype(np.int64)
     # canonical edge e runs from labels[e] to labels[e + 1]: local edge a when b == a + 1
@@ -93,15 +92,8 @@ def _upgrades(points: NDArray[np.float64], triangles: NDArray, todo: NDArray[np.
     for col, need in ((0, cand), (1, cand & s_om)):
         idx = np.flatnonzero(need & (verdicts[todo, col] < 0))
         if idx.size:
-            corners = canonical_corners(points, rows[idx], labels[idx])
-            coords = stencil_coordinates(corners, 2)
-            own = min_angles(corners)
-            if col == 0:
-                verdict = upgraded(quality(coords, 2, MN), quality(coords, 2, MN | NO), own)
-            else:
-                verdict = upgraded(quality(coords, 2, MN | OM), full_quality(corners, sch),
-                                   own)
-            verdicts[todo[idx], col] = verdict
+            verdicts[todo[idx], col] = upgrade_verdicts(points, rows[idx], labels[idx], col,
+                                                        sch)
     up = cand & ((verdicts[todo, 0] == 1) | (s_om & (verdicts[todo, 1] == 1)))
     return up, local[:, 1]
 

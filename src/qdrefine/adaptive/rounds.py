@@ -130,11 +130,19 @@ class Upgrades:
 
     def __init__(self, inp: StepInput, tree: Tree, known: NDArray[np.int8] | None = None
                  ) -> None:
+        """``known (N, 2) int8``, optional: verdicts of the first ``N`` tree nodes judged
+        already (:func:`upgrade_verdicts` by ``MN``, by ``OM``; -1 where not judged), e.g.
+        by the window's estimate (:mod:`~qdrefine.adaptive.reach`)."""
         self.inp, self.tree = inp, tree
-        # (nodes, [by MN, by OM]): 1 upgraded, 0 not, -1 not judged yet; ``known`` gives
-        # those of the first nodes (e.g. judged by the window's estimate)
-        self.verdicts = np.full((0, 2), -1, dtype=np.int8) if known is None else \
-            np.array(known, dtype=np.int8)
+        # (nodes, [by MN, by OM]): 1 upgraded, 0 not, -1 not judged yet
+        self.verdicts = np.full((0, 2), -1, dtype=np.int8)
+        if known is not None:
+            known = np.asarray(known)
+            if known.ndim != 2 or known.shape[1] != 2 \
+                    or known.shape[0] > tree.triangles.shape[0]:
+                raise ValueError(f"internal error: known verdicts of shape {known.shape} for "
+                                 f"{tree.triangles.shape[0]} tree nodes")
+            self.verdicts = known.astype(np.int8)
 
     def __call__(self, nodes: NDArray[np.int64], code: NDArray[np.int64]) -> NDArray[np.bool_]:
         if self.inp.k != 2:
@@ -151,16 +159,26 @@ class Upgrades:
         return (self.verdicts[nodes, 0] == 1) | (with_om & (self.verdicts[nodes, 1] == 1))
 
     def _judge(self, nodes: NDArray[np.int64], col: int) -> NDArray[np.int8]:
-        k, tree = self.inp.k, self.tree
-        corners = canonical_corners(tree.points, tree.triangles[nodes], tree.labels[nodes])
-        coords = stencil_coordinates(corners, k)
-        own = min_angles(corners)
-        if col == 0:
-            verdict = upgraded(quality(coords, k, MN), quality(coords, k, MN | NO), own)
-        else:
-            verdict = upgraded(quality(coords, k, MN | OM), full_quality(corners, self.inp.sch),
-                               own)
-        return verdict.astype(np.int8)
+        tree = self.tree
+        return upgrade_verdicts(tree.points, tree.triangles[nodes], tree.labels[nodes], col,
+                                self.inp.sch)
+
+
+def upgrade_verdicts(points: NDArray[np.float64], rows: NDArray, labels: NDArray,
+                     col: int, sch: Scheme) -> NDArray[np.int8]:
+    """The upgrade rule's verdicts ``(G,)`` (1: ``NO`` split too, 0: not) for the triangles
+    ``rows (G, 3)`` with canonical labels ``labels (G, 3)``: by ``MN`` (``col = 0``: the
+    best ``MN, NO`` pattern against the best ``MN`` one) or by ``OM`` (``col = 1``: the
+    full partition against the best ``MN, OM`` pattern); a seven-triangle scheme."""
+    k = sch.stencil.per_edge
+    corners = canonical_corners(points, rows, labels)
+    coords = stencil_coordinates(corners, k)
+    own = min_angles(corners)
+    if col == 0:
+        verdict = upgraded(quality(coords, k, MN), quality(coords, k, MN | NO), own)
+    else:
+        verdict = upgraded(quality(coords, k, MN | OM), full_quality(corners, sch), own)
+    return verdict.astype(np.int8)
 
 
 def full_quality(corners: NDArray[np.float64], sch: Scheme) -> NDArray[np.float64]:

@@ -75,7 +75,9 @@ def _one_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool
               verdicts: NDArray[np.int8] | None = None):
     """One pass; ``earlier``: sorted keys of the edges that had points before the step
     (default: ``fam``'s, right for the first pass; the follow-up pass gets the step
-    input's, so that it counts the first pass's points as this step's)."""
+    input's, so that it counts the first pass's points as this step's); ``verdicts
+    (M, 2)``: upgrade verdicts of the mesh's triangles judged already (mesh without
+    families)."""
     inp, tree, kids = start(mesh, marked, fam_marked, sch, fam, earlier)
     overlap_marks(inp, tree, kids)
     if verdicts is not None and fam.n_families:

@@ -9,8 +9,8 @@ split edges, new points and centroids come out in the same order too, and the st
 result is identical to the whole-mesh step (tested). The window starts from an estimate
 of what the step reaches (:mod:`~qdrefine.adaptive.reach`) on a mesh without transitions,
 from two vertex rings around the marks otherwise. The only passes over the whole mesh are
-linear and compiled: the vertex-to-triangle table, the rings (by vertex flags) and the copy
-of the untouched triangles.
+linear: the vertex-to-triangle table, the estimate's flags (a few passes over ``(M,)``
+arrays), the rings (by vertex flags) and the copy of the untouched triangles.
 """
 
 from __future__ import annotations
@@ -42,7 +42,10 @@ def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.
         return step(mesh, marked, fam_marked, sch, fam)
     seed = marked.copy()
     seed[fam.member >= 0] |= fam_marked[fam.member[fam.member >= 0]]
-    start = tris_of = verdicts = None  # the vertex-to-triangle table: once a window is tried
+    if seed.sum() > WHOLE_ABOVE * m:  # any window would be given up
+        return step(mesh, marked, fam_marked, sch, fam)
+    # the vertex-to-triangle table: built first without history, else once a window is tried
+    start = tris_of = verdicts = None
     if fam.n_families == 0:
         # an estimate of what the step reaches (a few triangles per mark, while two rings
         # around scattered marks cover much of the mesh)
