@@ -58,7 +58,7 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
     split = np.zeros(n_edges, dtype=bool) if presplit is None else presplit.copy()
     split[cedges[marked].ravel()] = True
     around = edge_triangles(cedges, n_edges)
-    rounds = _propagate(split, cedges, np.flatnonzero(_touching(split, cedges)), around)
+    rounds = _propagate(split, cedges, np.flatnonzero(touching(split, cedges)), around)
     if upgrade is None:
         return split, rounds
     before = earlier if earlier is not None else (
@@ -96,7 +96,7 @@ def _closure_of_marks(split: NDArray[np.bool_], presplit: NDArray[np.bool_],
     outside it (otherwise every earlier transition of the mesh could be upgraded in every
     step, however far from the marks, and a step on a window around the marks would differ
     from the step on the whole mesh)."""
-    return _touching(split & ~presplit, cedges) | marked
+    return touching(split & ~presplit, cedges) | marked
 
 
 @njit(parallel=True, cache=True)
@@ -105,7 +105,7 @@ def _touching_into(split, cedges, out):
         out[t] = split[cedges[t, 0]] or split[cedges[t, 1]] or split[cedges[t, 2]]
 
 
-def _touching(split: NDArray[np.bool_], cedges: NDArray[np.int64]) -> NDArray[np.bool_]:
+def touching(split: NDArray[np.bool_], cedges: NDArray[np.int64]) -> NDArray[np.bool_]:
     """``(M,) bool``: triangles with a split edge."""
     out = np.empty(cedges.shape[0], dtype=np.bool_)
     with threads_for(cedges.shape[0]):

