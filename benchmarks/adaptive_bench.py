@@ -72,6 +72,26 @@ def best(f, repeat):
     return t_best, out
 
 
+def _estimate(mesh: qdrefine.Mesh, marked: np.ndarray) -> dict:
+    """Triangles in the estimate a window starts from (``adaptive/reach.py``) and triangles
+    the step changes (not copied as they were), and how many of these the estimate
+    misses."""
+    from qdrefine.adaptive.reach import reached_triangles
+    from qdrefine.adaptive.window import vertex_triangles
+    from qdrefine.refine import refine_with_parents
+    from qdrefine.schemes import get_scheme
+
+    out, parents = refine_with_parents(mesh, "7t-qd", marked=marked)
+    count = np.bincount(parents, minlength=mesh.n_triangles)
+    rows = np.searchsorted(parents, np.arange(mesh.n_triangles))
+    same = (count == 1) & (out.triangles[np.minimum(rows, out.n_triangles - 1)]
+                           == mesh.triangles).all(axis=1)
+    start, tris_of = vertex_triangles(mesh.triangles, mesh.n_points)
+    reached, _ = reached_triangles(mesh, marked, get_scheme("7t-qd"), start, tris_of)
+    return {"estimate_triangles": int(reached.sum()), "changed_triangles": int((~same).sum()),
+            "changed_outside_estimate": int((~same & ~reached).sum())}
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeat", type=int, default=3)
@@ -110,11 +130,16 @@ def main(argv=None) -> None:
                "scikit_fem_seconds": t_sk,
                "scikit_fem_added": int(sk_out.t.shape[1] - base.n_triangles),
                "scikit_fem_over_step": t_sk / t_step}
+        if base.transitions is None:  # the window's starting estimate against the step
+            row.update(_estimate(base, marked))
         result["cases"][name] = row
         print(f"{name}: {row['triangles']} triangles, {row['marked']} marked, step "
               f"{t_step:.3f} s "
               f"({row['step_over_uniform']:.2f} x uniform), scikit-fem {t_sk:.3f} s "
               f"({row['scikit_fem_over_step']:.1f} x the step)")
+        if "estimate_triangles" in row:
+            print(f"  window estimate {row['estimate_triangles']} triangles, the step changes "
+                  f"{row['changed_triangles']} ({row['changed_outside_estimate']} outside it)")
     path = args.json or (Path(__file__).parent / "results"
                          / f"adaptive-bench-{result['date']}.json")
     path.write_text(json.dumps(result, indent=1))
