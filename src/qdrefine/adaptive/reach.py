@@ -1,5 +1,5 @@
-"""Where a step will reach, estimated cheaply: the window of a step with scattered marks on
-a mesh without transitions (:mod:`qdrefine.adaptive.window`).
+"""Where a step will reach, estimated cheaply: the window a step starts from on a mesh
+without transitions (:mod:`qdrefine.adaptive.window`).
 
 Two vertex rings around every mark cover much of a mesh once the marks are scattered (1%
 of a Gmsh mesh's triangles picked at random: about 40%), while the step itself changes
@@ -7,12 +7,13 @@ about 7 triangles per mark. This module follows the step's rules on the input tr
 in time proportional to what they reach: the longest-edge closure of the marks (a
 worklist over the vertex-to-triangle table, the exact canonical labels of the visited
 triangles only), then the upgrades of :class:`~qdrefine.adaptive.rounds.Upgrades`, judged
-by the same functions on the triangles whose split edges changed, bringing new triangles
-in for :data:`~qdrefine.adaptive.rounds.UPGRADE_LAYERS` layers. It is an estimate, not
-the step (the layers are counted more loosely): the window grows wherever its rim gets a
-split edge, so the result never depends on it, only the time does.
+on the triangles whose split edges changed, bringing new triangles in for
+:data:`~qdrefine.adaptive.rounds.UPGRADE_LAYERS` layers. The set is an estimate, not the
+step (the layers are counted more loosely): the window grows wherever its rim gets a split
+edge, so the result does not depend on it, only the time does. The verdicts judged on the
+way are passed to the step, which uses them as its own: they come from the step's function
+(:func:`~qdrefine.adaptive.rounds.upgrade_verdicts`) on the same coordinates.
 """
-
 from __future__ import annotations
 
 import numpy as np
