@@ -14,6 +14,7 @@ edge, so the result does not depend on it, only the time does. The verdicts judg
 way are passed to the step, which uses them as its own: they come from the step's function
 (:func:`~qdrefine.adaptive.rounds.upgrade_verdicts`) on the same coordinates.
 """
+
 from __future__ import annotations
 
 import numpy as np
