@@ -56,12 +56,18 @@ def canonical_edges(labels: NDArray[np.int8], tri_edges: NDArray[np.int64]
     return out
 
 
+@njit(cache=True, inline="always")
+def local_edge(a, b):
+    """Local index of the edge between local vertices ``a`` and ``b`` (edge ``i`` is
+    ``(v_i, v_{i+1})``)."""
+    return a if b == (a + 1) % 3 else b
+
+
 @njit(parallel=True, cache=True)
 def _canonical_edges(labels, tri_edges, out):
     for t in prange(labels.shape[0]):
         for i in range(3):
-            a, b = labels[t, i], labels[t, (i + 1) % 3]
-            out[t, i] = tri_edges[t, a if b == (a + 1) % 3 else b]
+            out[t, i] = tri_edges[t, local_edge(labels[t, i], labels[t, (i + 1) % 3])]
 
 
 def edge_split_codes(split: NDArray[np.bool_], ce: NDArray[np.int64]) -> NDArray[np.int64]:

@@ -25,7 +25,7 @@ from ..kernels import canonical
 from ..mesh import Mesh
 from ..predicates import SCRATCH
 from ..schemes import Scheme
-from .labels import canonical_labels
+from .labels import canonical_edges, canonical_labels, local_edge
 from .rounds import UPGRADE_LAYERS, upgrade_verdicts
 
 #: Upgrade rounds after the last layer (upgrades that bring no new triangle in).
@@ -82,13 +82,10 @@ def _upgrades(points: NDArray[np.float64], triangles: NDArray, todo: NDArray[np.
     verdicts not judged yet are judged (by the step's own
     :func:`~qdrefine.adaptive.rounds.upgrade_verdicts`) and kept in ``verdicts (M, 2)``."""
     rows = triangles[todo].astype(np.int64)
-    labels = canonical_labels(points, rows).astype(np.int64)
-    # canonical edge e runs from labels[e] to labels[e + 1]: local edge a when b == a + 1
-    local = np.empty((rows.shape[0], 3), dtype=np.int64)
-    for e in range(3):
-        a, b = labels[:, e], labels[:, (e + 1) % 3]
-        local[:, e] = np.where(b == (a + 1) % 3, a, b)
+    labels = canonical_labels(points, rows)
     g = np.arange(rows.shape[0])
+    # local indices of the canonical edges MN, NO, OM: those of the edges (0, 1, 2)
+    local = canonical_edges(labels, np.broadcast_to(np.arange(3), rows.shape))
     s_mn, s_no, s_om = (split[g, local[:, e]] for e in range(3))
     cand = s_mn & ~s_no
     for col, need in ((0, cand), (1, cand & s_om)):
@@ -188,7 +185,7 @@ def _close(points, triangles, start, tris_of, seeds, whole, state, split, dirty)
             v0, v1, v2 = triangles[t, 0], triangles[t, 1], triangles[t, 2]
             im, jn, _ = canonical(points[v0, 0], points[v0, 1], points[v1, 0],
                                   points[v1, 1], points[v2, 0], points[v2, 1], buf)
-            j = im if jn == (im + 1) % 3 else jn
+            j = local_edge(im, jn)
             u = _split_edge(triangles, start, tris_of, t, j, split, dirty)
             if u >= 0 and not state[u, 2]:
                 stack, top = _push(stack, top, 2 * u)
