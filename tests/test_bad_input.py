@@ -326,6 +326,54 @@ def test_too_large_for_memory_command_line(tmp_path):
     assert not out.exists() and _snapshot(tmp_path) == before
 
 
+def test_local_refinement_checks_memory(monkeypatch):
+    """Local refinement checks memory too, phase by phase, since its output size is known
+    only once its closure is: before the first step, the least output it can make (one
+    marked triangle 12 levels deep: refused at once, not after hours of refining); then
+    the working mesh of each pass, and each output before it is emitted."""
+    from qdrefine.memory import local_memory_needed
+
+    mesh = examples.plate_with_hole()  # 384 triangles: the whole-mesh step, no window
+    with pytest.raises(MemoryError, match=r"refining 384 triangles locally \(1 marked, 12 "
+                                          r"levels, at least \d+ triangles\) needs about"):
+        qdrefine.refine(mesh, marked=[0], levels=12)
+    marked = np.zeros(mesh.n_triangles, dtype=bool)
+    marked[::3] = True  # the closure more than doubles the least output
+    out = qdrefine.refine(mesh, marked=marked)
+    least = local_memory_needed(n_output=mesh.n_triangles + 6 * int(marked.sum()))
+    working = local_memory_needed(n_working=mesh.n_triangles)
+    emitted = local_memory_needed(n_output=out.n_triangles)
+    assert max(least, working) < emitted
+    made = sum(a.nbytes for a in (out.points, out.triangles, out.cell_tags, out.transitions)
+               if a is not None)
+    assert made < emitted  # the estimate covers the arrays made, at least
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, str((max(least, working) + emitted) // 2))
+    with pytest.raises(MemoryError, match=f"local refinement: emitting {out.n_triangles} "
+                                          "triangles needs about"):
+        qdrefine.refine(mesh, marked=marked)
+    least_one = local_memory_needed(n_output=mesh.n_triangles + 6)  # one mark
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, str((least_one + working) // 2))
+    with pytest.raises(MemoryError, match=f"a pass over {mesh.n_triangles} working triangles"):
+        qdrefine.refine(mesh, marked=[0])
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, str(emitted))
+    np.testing.assert_array_equal(qdrefine.refine(mesh, marked=marked).triangles, out.triangles)
+
+
+def test_local_refinement_too_large_for_memory_command_line(tmp_path):
+    path = tmp_path / "in.msh"
+    qdrefine.write(path, examples.plate_with_hole())
+    before = _snapshot(tmp_path)
+    out = tmp_path / "out.msh"
+    # every triangle marked: at least 2688 triangles, more than reading and checking need
+    result = cli("refine", path, out, "--mark-box=-1,-1,1,1", "--cycles", "3",
+                 env={MEMORY_LIMIT_VARIABLE: "300KiB"})
+    assert result.returncode == 1
+    assert result.stderr.startswith("qdrefine: error: refining 384 triangles locally (")
+    assert "GiB available (QDREFINE_MEMORY_LIMIT)" in result.stderr
+    assert result.stderr.count("\n") == 1
+    assert not out.exists() and _snapshot(tmp_path) == before
+
+
 def test_every_kind_is_documented():
     guide = (Path(__file__).parents[1] / "docs" / "guide.md").read_text()
     for kind in check.KINDS:

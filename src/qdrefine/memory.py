@@ -16,11 +16,32 @@ if TYPE_CHECKING:
     from .mesh import Mesh
 
 __all__ = ["check_memory", "memory_needed", "available_memory", "MEMORY_LIMIT_VARIABLE",
-           "validation_needed", "reading_needed_for_bytes", "check_needed"]
+           "validation_needed", "reading_needed_for_bytes", "check_needed",
+           "local_memory_needed", "LOCAL_PER_WORKING", "LOCAL_PER_OUTPUT"]
 
 #: Environment variable capping the memory qdrefine may plan to use (e.g. ``4GiB``).
 MEMORY_LIMIT_VARIABLE = "QDREFINE_MEMORY_LIMIT"
 _UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+#: Local refinement (:mod:`qdrefine.adaptive`): peak bytes per working triangle of one pass
+#: before its output is emitted (the working tree, its edge numbering, the closure's
+#: tables); at most 322 measured on Gmsh meshes of 0.2 to 1.2 M triangles
+#: (``benchmarks/adaptive_memory.py``, ``docs/performance.md``), 1.5 times that here.
+LOCAL_PER_WORKING = 480
+#: Local refinement: peak bytes per output triangle of emitting a pass and finishing the
+#: step (output arrays, families, the stitched mesh, its history); at most 128 measured.
+LOCAL_PER_OUTPUT = 160
+
+
+def local_memory_needed(n_working: int = 0, n_output: int = 0) -> int:
+    """Peak bytes of a local refinement pass over ``n_working`` working triangles that
+    emits ``n_output`` triangles (an estimate from above, from the measured constants
+    :data:`LOCAL_PER_WORKING` and :data:`LOCAL_PER_OUTPUT`). A step's output size is known
+    only once its closure is, so the adaptive code checks each phase before it allocates:
+    the lower bound of the output before a step, the working mesh before a pass, the
+    output before it is emitted and stitched."""
+    return LOCAL_PER_WORKING * int(n_working) + LOCAL_PER_OUTPUT * int(n_output)
+
 
 def validation_needed(n_points: int, n_triangles: int, n_boundary: int | None = None) -> int:
     """Peak bytes of validating a mesh (:func:`qdrefine.check.find`), an estimate from above.

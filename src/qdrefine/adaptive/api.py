@@ -10,6 +10,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from ..arguments import as_count
+from ..memory import check_needed, local_memory_needed
 from ..mesh import Mesh, index_dtype
 from ..schemes import Scheme, get_scheme
 from ..uniform import check_rounding
@@ -87,6 +88,7 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
     if order is not None:
         mask = mask[order]
     fam_mask = np.zeros(fam.n_families, dtype=bool)
+    _check_least_memory(work, mask & (fam.member < 0), sch, levels)
     parents = np.arange(mesh.n_triangles, dtype=np.int64) if order is None else order
     out = work
     for _ in range(levels):
@@ -130,6 +132,21 @@ def _mark_unchanged(parents, children, triangles, count, changed):
         if count[p] == 1 and children[r, 0] == triangles[p, 0] \
                 and children[r, 1] == triangles[p, 1] and children[r, 2] == triangles[p, 2]:
             changed[p] = False
+
+
+def _check_least_memory(mesh: Mesh, plain_marked: NDArray[np.bool_], sch: Scheme,
+                        levels: int) -> None:
+    """``MemoryError`` before anything is allocated when even the least possible output
+    cannot be emitted: every marked triangle that is not a transition child becomes at
+    least ``T ** levels`` triangles (its children are marked again). The phases of each
+    step check again once their sizes are known (:func:`qdrefine.memory.local_memory_needed`)."""
+    marked = int(plain_marked.sum())
+    if not marked or not levels:
+        return
+    least = mesh.n_triangles + marked * (sch.n_children ** levels - 1)
+    check_needed(local_memory_needed(n_output=least),
+                 f"refining {mesh.n_triangles} triangles locally ({marked} marked, "
+                 f"{levels} level{'s' if levels != 1 else ''}, at least {least} triangles)")
 
 
 def _finished(before: Mesh, res: Step) -> tuple[Mesh, Families]:

@@ -7,6 +7,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from ..memory import check_needed, local_memory_needed
 from ..mesh import Mesh, index_dtype
 from .edgekeys import KEY, edge_keys, lookup, oriented, register
 from .families import Families
@@ -51,6 +52,8 @@ def emit_step(inp: StepInput, tree: Tree, cl: SplitPlan
     kept_fam = tree.fam[cl.leaves[kept]]
     nk[kept] = inp.counts[kept_fam]
     start = np.concatenate([[0], np.cumsum(nk)])
+    check_needed(local_memory_needed(n_output=int(start[-1])),
+                 f"local refinement: emitting {int(start[-1])} triangles")
     tris = np.empty((int(start[-1]), 3), dtype=np.int64)
     parents = np.repeat(tree.key[cl.leaves], nk)
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..memory import check_needed, local_memory_needed
 from ..mesh import Mesh
 from ..schemes import Scheme
 from .families import Families
@@ -78,6 +79,9 @@ def _one_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool
     input's, so that it counts the first pass's points as this step's); ``verdicts
     (M, 2)``: upgrade verdicts of the mesh's triangles judged already (mesh without
     families)."""
+    working = int((fam.member < 0).sum()) + fam.n_families
+    check_needed(local_memory_needed(n_working=working),
+                 f"local refinement: a pass over {working} working triangles")
     inp, tree, kids = start(mesh, marked, fam_marked, sch, fam, earlier)
     overlap_marks(inp, tree, kids)
     if verdicts is not None and fam.n_families:

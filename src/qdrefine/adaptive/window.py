@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from ..memory import check_needed, local_memory_needed
 from ..mesh import Mesh, index_dtype
 from ..numbering import incidence
 from ..schemes import Scheme
@@ -175,6 +176,8 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     count[rows] = np.bincount(res.parents, minlength=rows.size)
     first = np.cumsum(count) - count
     total = int(count.sum())
+    check_needed(local_memory_needed(n_output=total),
+                 f"local refinement: emitting {total} triangles")
     keep = np.flatnonzero(~window)
     parents = np.empty(total, dtype=np.int64)
     points = np.concatenate([mesh.points, sub.points[n_sub:]])
