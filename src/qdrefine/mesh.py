@@ -72,6 +72,19 @@ def _transitions(rows: ArrayLike | None, triangles: NDArray, n_points: int
     return a
 
 
+def _origins(rows: ArrayLike | None, triangles: NDArray, n_points: int
+             ) -> NDArray[np.int64] | None:
+    """The origin rows ``(M, 3)``: vertex rows of existing points."""
+    if rows is None:
+        return None
+    a = np.array(rows, dtype=np.int64)
+    if a.shape != triangles.shape:
+        raise ValueError(f"origins must have shape {triangles.shape}, got {a.shape}")
+    if a.size and (a.min() < 0 or a.max() >= n_points):
+        raise ValueError(f"origins: vertex ids must be in 0..{n_points - 1}")
+    return a
+
+
 @dataclass(frozen=True, eq=False)
 class Mesh:
     """A 2D triangle mesh.
@@ -106,6 +119,13 @@ class Mesh:
         :func:`qdrefine.refine` with ``marked``, read by the next such call, which coarsens
         those patterns before refining them (``docs/adaptive.md``). ``None``: no triangle is
         a transition child.
+    origins : (M, 3) int, optional
+        Refinement history for coarsening: for each triangle, the vertex row of the
+        triangle of the mesh that local refinement started from (its *origin*) that it
+        lies in. Set by :func:`qdrefine.refine` with ``marked`` (the input's triangles
+        where the input has none), carried by every refinement, read by
+        :func:`qdrefine.coarsen`, which restores only triangles of an origin's uniform
+        refinements. ``None``: no history (the mesh cannot be coarsened).
 
     Construction validates everything once with :func:`qdrefine.check.find` and raises
     ``ValueError`` naming the first problem and where (triangle, vertex or edge ids): shapes,
@@ -125,6 +145,7 @@ class Mesh:
     cell_data: Mapping[str, NDArray] | None = None
     physical_names: Mapping[tuple[int, int], str] | None = None
     transitions: NDArray[np.int64] | None = None
+    origins: NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
         fields, buckets = _validated(self.points, self.triangles, self.cell_tags, self.edges,
@@ -135,6 +156,7 @@ class Mesh:
         fields["cell_data"] = _data(self.cell_data, m, "cell_data", "triangles")
         fields["physical_names"] = _names(self.physical_names)
         fields["transitions"] = _transitions(self.transitions, fields["triangles"], n)
+        fields["origins"] = _origins(self.origins, fields["triangles"], n)
         for name, value in fields.items():
             object.__setattr__(self, name, _readonly(value))
 
@@ -144,8 +166,8 @@ class Mesh:
                  point_data: Mapping[str, NDArray] | None = None,
                  cell_data: Mapping[str, NDArray] | None = None,
                  physical_names: Mapping[tuple[int, int], str] | None = None,
-                 transitions: NDArray | None = None, buckets: EdgeBuckets | None = None
-                 ) -> Mesh:
+                 transitions: NDArray | None = None, buckets: EdgeBuckets | None = None,
+                 origins: NDArray | None = None) -> Mesh:
         """A mesh from arrays already known to be valid (output of qdrefine's kernels or of
         :func:`qdrefine.check.find`, whose ``buckets`` the first refinement then reuses)."""
         mesh = object.__new__(cls)
@@ -157,7 +179,7 @@ class Mesh:
                             ("point_data", _frozen_map(point_data)),
                             ("cell_data", _frozen_map(cell_data)),
                             ("physical_names", MappingProxyType(dict(physical_names or {}))),
-                            ("transitions", transitions)):
+                            ("transitions", transitions), ("origins", origins)):
             object.__setattr__(mesh, name, _readonly(value))
         return mesh
 

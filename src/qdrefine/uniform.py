@@ -72,8 +72,9 @@ def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
     point_data = refine_point_data(mesh.point_data, edges, k) if mesh.point_data else None
     cell_data = {name: np.repeat(value, sch.n_children, axis=0)
                  for name, value in (mesh.cell_data or {}).items()}
+    origins = None if mesh.origins is None else np.repeat(mesh.origins, sch.n_children, axis=0)
     return Mesh._trusted(points, triangles, cell_tags, new_edges, edge_tags, point_data,
-                         cell_data, mesh.physical_names)
+                         cell_data, mesh.physical_names, origins=origins)
 
 
 def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: NDArray[np.float64],

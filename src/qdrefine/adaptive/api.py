@@ -90,6 +90,7 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
     fam_mask = np.zeros(fam.n_families, dtype=bool)
     _check_least_memory(work, mask & (fam.member < 0), sch, levels)
     parents = np.arange(mesh.n_triangles, dtype=np.int64) if order is None else order
+    point_map = np.arange(mesh.n_points, dtype=np.int64)  # input point ids -> output's
     out = work
     for _ in range(levels):
         if not (mask.any() or fam_mask.any()):
@@ -97,14 +98,29 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
         res = windowed_step(out, mask, fam_mask, sch, fam)
         check_rounding(out.points, out.triangles, res.mesh.points, res.mesh.triangles, k,
                        res.parents, suspect=_changed(out, res))
-        out, fam = _finished(out, res)
+        out, fam, new_id = _finished(out, res)
         parents = parents[res.parents]
+        if new_id is not None:
+            point_map = new_id[point_map]
         mask = res.inside & (fam.member < 0)
         fam_mask = np.zeros(fam.n_families, dtype=bool)
         fam_mask[fam.member[res.inside & (fam.member >= 0)]] = True
     if out is work:
         return mesh, np.arange(mesh.n_triangles, dtype=np.int64)
-    return with_history(out, fam), parents
+    return with_history(out, fam, point_map[origin_rows(mesh)[parents]]), parents
+
+
+def origin_rows(mesh: Mesh) -> NDArray[np.int64]:
+    """:attr:`~qdrefine.Mesh.origins` of ``mesh``, or where it has none, its triangles
+    with each transition child's family parent in its place (the triangles a step
+    works on: a transition's centroid can go, its parent's corners stay)."""
+    if mesh.origins is not None:
+        return mesh.origins
+    rows = mesh.triangles.astype(np.int64)
+    if mesh.transitions is not None:
+        green = mesh.transitions[:, 0] >= 0
+        rows[green] = mesh.transitions[green]
+    return rows
 
 
 def _changed(before: Mesh, res: Step) -> NDArray[np.bool_]:
@@ -149,9 +165,10 @@ def _check_least_memory(mesh: Mesh, plain_marked: NDArray[np.bool_], sch: Scheme
                  f"{levels} level{'s' if levels != 1 else ''}, at least {least} triangles)")
 
 
-def _finished(before: Mesh, res: Step) -> tuple[Mesh, Families]:
+def _finished(before: Mesh, res: Step) -> tuple[Mesh, Families, NDArray[np.int64] | None]:
     """The step's mesh with the tagged edges of ``before`` cut where split, and without
-    the centroids of coarsened transitions (the other points keep their order)."""
+    the centroids of coarsened transitions (the other points keep their order); and the
+    new id of each of the step's points (``-1``: removed), ``None`` if none was removed."""
     mesh, fam = res.mesh, res.families
     edges = edge_tags = None
     if before.edges is not None:
@@ -175,7 +192,7 @@ def _finished(before: Mesh, res: Step) -> tuple[Mesh, Families]:
                         mesh.cell_data, mesh.physical_names)
     if drop.size:
         fam = Families(fam.member, new_id[fam.parent_triangles], new_id[fam.stencil])
-    return out, fam
+    return out, fam, (new_id if drop.size else None)
 
 
 def refine_cycles(mesh: Mesh, mark: Callable[[Mesh], ArrayLike], cycles: int,

@@ -69,9 +69,10 @@ def families_of(mesh: Mesh, k: int) -> tuple[Mesh, Families, NDArray[np.int64] |
     return mesh, Families(member, parent_rows, stencil), order
 
 
-def with_history(mesh: Mesh, families: Families) -> Mesh:
+def with_history(mesh: Mesh, families: Families, origins: NDArray | None = None) -> Mesh:
     """``mesh`` with :attr:`~qdrefine.Mesh.transitions` set from ``families`` (``None``
-    when no triangle is a transition child)."""
+    when no triangle is a transition child) and :attr:`~qdrefine.Mesh.origins` to
+    ``origins``."""
     member = families.member
     rows = None
     if families.n_families:
@@ -79,7 +80,7 @@ def with_history(mesh: Mesh, families: Families) -> Mesh:
         _parent_rows(member, families.parent_triangles, rows)
     return Mesh._trusted(mesh.points, mesh.triangles, mesh.cell_tags, mesh.edges,
                          mesh.edge_tags, mesh.point_data, mesh.cell_data,
-                         mesh.physical_names, rows)
+                         mesh.physical_names, rows, origins=origins)
 
 
 @njit(cache=True)
@@ -126,9 +127,10 @@ def _sorted_unique_rows(rows: NDArray[np.int64]) -> tuple[NDArray[np.int64],
 def _reordered(mesh: Mesh, order: NDArray[np.int64]) -> Mesh:
     cell_data = {k: v[order] for k, v in mesh.cell_data.items()}
     tags = None if mesh.cell_tags is None else mesh.cell_tags[order]
+    origins = None if mesh.origins is None else mesh.origins[order]
     return Mesh._trusted(mesh.points, mesh.triangles[order], tags, mesh.edges,
                          mesh.edge_tags, mesh.point_data, cell_data, mesh.physical_names,
-                         mesh.transitions[order])
+                         mesh.transitions[order], origins=origins)
 
 
 def _stencils(mesh: Mesh, parent_rows: NDArray[np.int64], member: NDArray[np.int64],

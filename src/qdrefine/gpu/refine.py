@@ -164,9 +164,11 @@ def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     check_memory(mesh, sch, levels)  # the result comes back to the host
     out = refine_device(mesh.points, mesh.triangles, sch, levels, cell_tags=mesh.cell_tags,
                         edges=mesh.edges, edge_tags=mesh.edge_tags, strict=strict)
+    origins = None if mesh.origins is None else \
+        np.repeat(mesh.origins, sch.n_children ** levels, axis=0)
     return Mesh._trusted(*(None if a is None else _host(a) for a in
                            (out.points, out.triangles, out.cell_tags, out.edges,
-                            out.edge_tags)))
+                            out.edge_tags)), origins=origins)
 
 
 def check_device_memory(n_points: int, n_triangles: int, scheme: Scheme, levels: int,

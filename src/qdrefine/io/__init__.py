@@ -55,7 +55,7 @@ import numpy as np
 
 from ..check import MIN_ANGLE, Checked, find
 from ..memory import check_needed, reading_needed_for_bytes
-from ..mesh import Mesh, _data, _names, _transitions
+from ..mesh import Mesh, _data, _names, _origins, _transitions
 from . import gmsh, obj, triangle, vtu, xdmf
 from ._core import WRITE_ERRNOS, RawMesh, atomic_path, atomic_paths, cannot_write, permission_bits
 from .meshio_formats import read_with_meshio, write_with_meshio
@@ -187,11 +187,12 @@ def mesh_of(raw: RawMesh) -> Mesh:
         cell_data = _data(raw.cell_data, m, "cell_data", "triangles")
         names = _names(raw.physical_names)
         transitions = _transitions(raw.transitions, found.triangles, n)
+        origins = _origins(raw.origins, found.triangles, n)
     except ValueError as exc:
         raise ValueError(f"{raw.path}: {exc}") from None
     return Mesh._trusted(found.points, found.triangles, found.cell_tags, found.edges,
                          found.edge_tags, point_data, cell_data, names, transitions,
-                         buckets=found.buckets)
+                         buckets=found.buckets, origins=origins)
 
 
 def check_file(path: PathLike, min_angle: float = MIN_ANGLE) -> tuple[RawMesh, Checked]:
@@ -332,6 +333,8 @@ def _warn_dropped(path: Path, fmt: Format, mesh: Mesh) -> None:
     data = [*(mesh.point_data or {}), *(mesh.cell_data or {})]
     if mesh.transitions is not None:
         data.append("transitions")
+    if mesh.origins is not None:
+        data.append("origins")
     if data and not fmt.data:
         warnings.warn(f"{path}: {fmt.name} files hold no point or cell data; "
                       f"{', '.join(data)} dropped", stacklevel=3)

@@ -20,6 +20,8 @@ PathLike = str | os.PathLike
 
 #: The cell-data name under which :attr:`qdrefine.Mesh.transitions` is stored in files.
 TRANSITIONS = "qdrefine:transitions"
+#: The cell-data name under which :attr:`qdrefine.Mesh.origins` is stored in files.
+ORIGINS = "qdrefine:origins"
 
 
 @dataclass
@@ -47,6 +49,7 @@ class RawMesh:
     cell_data: dict[str, NDArray] = field(default_factory=dict)
     physical_names: dict[tuple[int, int], str] = field(default_factory=dict)
     transitions: NDArray | None = None
+    origins: NDArray | None = None
     #: The file's own number of every point, triangle and tagged edge (Gmsh node and element
     #: tags), for messages; None: numbered from ``base`` in the order of the file.
     point_numbers: NDArray | None = None
@@ -188,26 +191,30 @@ def from_blocks(path: Path, points: NDArray, blocks: list[tuple[str, NDArray]],
 
 def split_data(raw: RawMesh, point_data: Mapping[str, NDArray],
                cell_data: Mapping[str, NDArray]) -> None:
-    """Store point and cell data on ``raw``; the cell data named :data:`TRANSITIONS` becomes
-    ``raw.transitions`` (``(M, 3) int64``)."""
+    """Store point and cell data on ``raw``; the cell data named :data:`TRANSITIONS` and
+    :data:`ORIGINS` become ``raw.transitions`` and ``raw.origins`` (``(M, 3) int64``)."""
     raw.point_data.update(point_data)
     for name, value in cell_data.items():
-        if name == TRANSITIONS:
+        if name in (TRANSITIONS, ORIGINS):
             t = np.asarray(value)
             if t.ndim != 2 or t.shape[1] != 3 or (t.dtype.kind == "f" and
                                                   not (np.round(t) == t).all()):
-                raise ValueError(f"{raw.path}: cell data {TRANSITIONS!r} must be 3 integers "
-                                 "per triangle")
-            raw.transitions = t.astype(np.int64)
+                raise ValueError(f"{raw.path}: cell data {name!r} must be 3 integers per "
+                                 "triangle")
+            setattr(raw, "transitions" if name == TRANSITIONS else "origins",
+                    t.astype(np.int64))
         else:
             raw.cell_data[name] = value
 
 
 def mesh_data(mesh) -> tuple[dict[str, NDArray], dict[str, NDArray]]:
-    """Point data and cell data of ``mesh`` to write, the transitions as cell data."""
+    """Point data and cell data of ``mesh`` to write, the history (transitions, origins)
+    as cell data."""
     cell_data = dict(mesh.cell_data or {})
     if mesh.transitions is not None:
         cell_data[TRANSITIONS] = np.asarray(mesh.transitions, dtype=np.int64)
+    if getattr(mesh, "origins", None) is not None:
+        cell_data[ORIGINS] = np.asarray(mesh.origins, dtype=np.int64)
     return dict(mesh.point_data or {}), cell_data
 
 
