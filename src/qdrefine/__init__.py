@@ -6,7 +6,7 @@ four-triangle schemes for comparison. See :func:`refine` and :func:`partition`.
 
 from . import jit  # noqa: F401, I001  (first: where numba caches the kernels)
 from . import marking  # noqa: I001
-from .adaptive import refine_cycles
+from .adaptive import coarsen, refine_cycles
 from .io import read, write
 from .mesh import Mesh
 from .partition import partition, partition_many
@@ -16,6 +16,7 @@ from .schemes import SCHEMES, get_scheme, scheme_names
 __all__ = [
     "Mesh",
     "SCHEMES",
+    "coarsen",
     "get_scheme",
     "marking",
     "partition",

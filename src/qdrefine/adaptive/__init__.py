@@ -12,6 +12,7 @@ point data), :mod:`.overlap` (marked transition children), :mod:`.families`,
 """
 
 from .api import as_mask, refine_cycles, refine_marked
+from .coarsen import coarsen, coarsen_marked
 from .families import Families
 from .labels import canonical_edges, canonical_labels
 from .longest_edge import closure
@@ -19,6 +20,8 @@ from .patterns import TRANSITIONS
 
 __all__ = [
     "refine_marked",
+    "coarsen",
+    "coarsen_marked",
     "refine_cycles",
     "Families",
     "closure",

@@ -47,11 +47,9 @@ class SplitPlan:
         return edge_split_codes(self.split, self.ce)
 
 
-def plan_splits(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.int64]],
-                                               NDArray[np.bool_]] | None = None) -> SplitPlan:
-    """Edges of the working mesh and the closure of its marks (pre-split edges included),
-    with ``upgrades(nodes, codes)`` (e.g. :class:`Upgrades`) saying which triangles get
-    ``NO`` split too."""
+def working_edges(tree: Tree) -> SplitPlan:
+    """The working mesh's leaves, numbered edges (in sorted order), their registry
+    positions and canonical edges; no edge split yet."""
     leaves = tree.leaves()
     # 32-bit ids where they fit: the edge numbering sorts about 20% faster
     triangles = tree.triangles[leaves].astype(index_dtype(tree.points.shape[0]), copy=False)
@@ -60,11 +58,22 @@ def plan_splits(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.in
     pos = lookup_sorted(tree.reg_keys, keys)  # edges are numbered in sorted order
     labels = tree.labels[leaves]
     ce = canonical_edges(labels, tri_edges)
-    split, _ = closure(ce, tree.mark[leaves], edges.shape[0], presplit=pos >= 0,
-                       earlier=lookup_sorted(tree.earlier_keys, keys) >= 0,
-                       upgrade=None if upgrades is None else
-                       lambda t, code: upgrades(leaves[t], code), layers=UPGRADE_LAYERS)
-    return SplitPlan(leaves, triangles, edges, tri_edges, counts, keys, pos, labels, ce, split)
+    return SplitPlan(leaves, triangles, edges, tri_edges, counts, keys, pos, labels, ce,
+                     np.zeros(edges.shape[0], dtype=bool))
+
+
+def plan_splits(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.int64]],
+                                               NDArray[np.bool_]] | None = None) -> SplitPlan:
+    """Edges of the working mesh and the closure of its marks (pre-split edges included),
+    with ``upgrades(nodes, codes)`` (e.g. :class:`Upgrades`) saying which triangles get
+    ``NO`` split too."""
+    cl = working_edges(tree)
+    leaves = cl.leaves
+    cl.split, _ = closure(cl.ce, tree.mark[leaves], cl.edges.shape[0], presplit=cl.pre,
+                          earlier=lookup_sorted(tree.earlier_keys, cl.keys) >= 0,
+                          upgrade=None if upgrades is None else
+                          lambda t, code: upgrades(leaves[t], code), layers=UPGRADE_LAYERS)
+    return cl
 
 
 def conflicts(inp: StepInput, tree: Tree, cl: SplitPlan) -> bool:

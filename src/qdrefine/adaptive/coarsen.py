@@ -1,0 +1,238 @@
+"""Coarsening: undo the partitions whose children are all marked, and keep the mesh
+conforming with the transitions the remaining points need.
+
+The *red families* (:mod:`~qdrefine.adaptive.red_families`: working triangles, transition
+families counted as their parents, that are exactly the scheme's partition of a triangle
+``P`` of an origin's uniform refinements) whose children are all marked (a transition
+parent: all its members marked) and carry one cell tag are replaced by ``P``. Then, as in
+a refinement step (:mod:`~qdrefine.adaptive.step`), a closure decides which edges keep
+their points: those whose other side is finer (its pieces are working edges), closed
+under the longest-edge rule, with the upgrade rule where the ``NO`` edge has its points
+already, so coarsening creates no point; the transitions are chosen as a refinement
+would choose them. A ``P`` with an edge whose pieces have points too (a neighbour two
+levels finer) keeps its children (the step's conflict rule). Points no triangle uses any
+more are removed (later points move down), tagged edges are joined again across them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import ArrayLike, NDArray
+
+from ..memory import check_needed, local_memory_needed
+from ..mesh import Mesh, index_dtype
+from ..schemes import Scheme, get_scheme
+from .edgekeys import edge_keys, lookup, oriented
+from .families import Families
+from .history import families_of, with_history
+from .longest_edge import closure
+from .output import emit_step
+from .red_families import red_families, working_rows
+from .rounds import UPGRADE_LAYERS, SplitPlan, Upgrades, conflicts, working_edges
+from .working import start
+
+
+def coarsen(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd") -> Mesh:
+    """Undo the partitions whose children are all marked: the inverse of
+    ``refine(mesh, scheme, marked=...)``, for time-dependent problems whose refined
+    region moves.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        With its history (:attr:`~qdrefine.Mesh.origins`, set by local refinement and
+        kept by every refinement and by files that hold cell data): only triangles of
+        the uniform refinements of an origin are restored. Without it nothing changes.
+    marked : (M,) bool or (K,) int
+        Mask or indices of the triangles that may go. A partition is undone when all its
+        children are marked (a child refined by a transition: all of the transition's
+        triangles) and carry one cell tag; one level per call.
+    scheme : {"7t-qd", "7t-le", "7t-d", "4t-le", "4t-red"}
+        The scheme the mesh was refined with.
+
+    Returns
+    -------
+    Mesh
+        Conforming: the restored triangles and their neighbours get the transitions the
+        remaining points need, chosen as refinement chooses them (no new point is
+        made). A restored triangle with a neighbour two levels finer keeps its children.
+        Points no triangle uses any more are removed (the others keep their order); tags,
+        tagged edges (joined again), cell data (the first child's), point data and the
+        history are kept. ``coarsen(refine(m, marked=k), all)`` is ``m`` again, with the
+        history added. Details: ``docs/adaptive.md``, "Coarsening".
+    """
+    return coarsen_marked(mesh, marked, scheme)[0]
+
+
+def coarsen_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd"
+                   ) -> tuple[Mesh, NDArray[np.int64]]:
+    """:func:`coarsen`, also returning ``parents (M',) int64``: an input triangle of each
+    output triangle (a restored triangle maps to its first child, a transition to its
+    family's first member)."""
+    from .api import as_mask
+
+    sch = get_scheme(scheme)
+    mask = as_mask(marked, mesh.n_triangles)
+    check_needed(local_memory_needed(n_working=mesh.n_triangles, n_output=mesh.n_triangles),
+                 f"coarsening {mesh.n_triangles} triangles")
+    work, fam, order = families_of(mesh, sch.stencil.per_edge)
+    if order is not None:
+        mask = mask[order]
+    base = np.arange(mesh.n_triangles, dtype=np.int64) if order is None else order
+    found = red_families(work, fam, mask, sch)
+    if not found.shape[0]:
+        return mesh, np.arange(mesh.n_triangles, dtype=np.int64)
+    out, parents = _coarsened(work, fam, found, sch)
+    return out, base[parents]
+
+
+def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
+               ) -> tuple[Mesh, NDArray[np.int64]]:
+    """The mesh with the red families ``found`` (rows of :func:`red_families`) restored,
+    closed; ``parents`` in ``mesh``'s triangle order."""
+    k = sch.stencil.per_edge
+    rows, owner = working_rows(mesh, fam)
+    n_plain = int((fam.member < 0).sum())
+    children = found[:, 3 + 3 * k:]
+    # the mesh triangles that go: plain children, and the members of children's families
+    gone = np.zeros(mesh.n_triangles, dtype=bool)
+    child_plain = children[children < n_plain]
+    gone[owner[child_plain]] = True
+    child_fam = children[children >= n_plain] - n_plain
+    dropped = np.zeros(fam.n_families + 1, dtype=bool)  # the last: "no family"
+    dropped[child_fam] = True
+    gone |= dropped[fam.member]
+    dropped = dropped[:-1]
+    # each restored triangle takes the place of its first mesh triangle
+    first_of = owner[children].min(axis=1)
+    kept = np.flatnonzero(~gone)
+    position = np.concatenate([kept, first_of])
+    order = np.argsort(position, kind="stable")
+    stands_for = position[order]  # the input triangle each coarse row stands for
+    coarse_rows = np.concatenate([mesh.triangles[kept].astype(np.int64),
+                                  found[:, :3]])[order]
+    # families that stay, renumbered in their order (members stay consecutive)
+    member = np.concatenate([fam.member[kept], np.full(found.shape[0], -1)])[order]
+    stay = np.flatnonzero(~dropped)
+    renum = np.full(fam.n_families + 1, -1, dtype=np.int64)
+    renum[stay] = np.arange(stay.size)
+    coarse_fam = Families(renum[member], fam.parent_triangles[stay], fam.stencil[stay])
+    dtype = index_dtype(mesh.n_points)
+    tags = None if mesh.cell_tags is None else mesh.cell_tags[stands_for]
+    cell_data = {name: v[stands_for] for name, v in mesh.cell_data.items()}
+    coarse = Mesh._trusted(mesh.points, coarse_rows.astype(dtype), tags, None, None,
+                           mesh.point_data, cell_data, mesh.physical_names)
+    no = np.zeros(coarse.n_triangles, dtype=bool)
+    inp, tree, _ = start(coarse, no, np.zeros(coarse_fam.n_families, dtype=bool), sch,
+                         coarse_fam)
+    # every edge that has points: the input's transitions' and the restored triangles'
+    keys, pts = fam.registry()
+    tri3 = found[:, :3]
+    a, b = tri3.reshape(-1), np.roll(tri3, -1, axis=1).reshape(-1)
+    restored_pts = oriented(found[:, 3:3 + 3 * k].reshape(-1, k), a, b)
+    all_keys = np.concatenate([keys, edge_keys(a, b)])
+    all_keys, first = np.unique(all_keys, return_index=True)
+    tree.reg_keys = all_keys
+    tree.reg_pts = np.concatenate([pts.reshape(-1, k), restored_pts])[first]
+    tree.earlier_keys = all_keys
+    upgrades = Upgrades(inp, tree)
+    while True:
+        cl = _coarse_plan(tree, upgrades)
+        if not conflicts(inp, tree, cl):  # a restored triangle with a neighbour two
+            break  # levels finer keeps its children (it is expanded again)
+    if (cl.split & ~cl.pre).any():
+        raise RuntimeError("qdrefine internal error: coarsening split an edge without points")
+    out, parents, fam2, _, _, _ = emit_step(inp, tree, cl)
+    parents = stands_for[parents]
+    return _without_unused(mesh, out, fam2, mesh.origins[parents]), parents
+
+
+def _coarse_plan(tree, upgrades: Upgrades) -> SplitPlan:
+    """The split edges of the coarse working mesh: those whose other side is finer (their
+    pieces are working edges), closed under the longest-edge rule, with upgrades only
+    where the ``NO`` edge has its points already."""
+    cl = working_edges(tree)
+    hanging = np.zeros(cl.edges.shape[0], dtype=bool)
+    cand = np.flatnonzero(cl.pre & (cl.counts == 1))
+    if cand.size:
+        chain = np.column_stack([cl.edges[cand, 0], tree.reg_pts[cl.pos[cand]],
+                                 cl.edges[cand, 1]]).astype(np.int64)
+        sub = edge_keys(chain[:, :-1], chain[:, 1:])
+        hanging[cand[(lookup(cl.keys, sub) >= 0).any(axis=1)]] = True
+    leaves, ce, has_points = cl.leaves, cl.ce, cl.pre
+
+    def upgrade(t: NDArray[np.int64], code: NDArray[np.int64]) -> NDArray[np.bool_]:
+        return upgrades(leaves[t], code) & has_points[ce[t, 1]]
+
+    n_edges = cl.edges.shape[0]
+    cl.split, _ = closure(ce, np.zeros(leaves.size, dtype=bool), n_edges, presplit=hanging,
+                          upgrade=upgrade, layers=UPGRADE_LAYERS,
+                          earlier=np.zeros(n_edges, dtype=bool))
+    return cl
+
+
+def _without_unused(before: Mesh, out: Mesh, fam: Families, origins: NDArray[np.int64]
+                    ) -> Mesh:
+    """``out`` without the points no triangle uses (the others keep their order), its
+    tagged edges those of ``before`` joined across the removed points, its history
+    (``fam``, ``origins`` in ``out``'s point ids)."""
+    used = np.zeros(out.n_points, dtype=bool)
+    used[out.triangles.reshape(-1)] = True
+    used[:before.n_points] |= ~_used_by(before)  # points that were never in a triangle
+    new_id = np.append(np.cumsum(used) - 1, -1)
+    dtype = index_dtype(int(used.sum()))
+    edges = edge_tags = None
+    if before.edges is not None:
+        edges, edge_tags = _joined(before.edges.astype(np.int64), before.edge_tags,
+                                   ~used[:before.n_points])
+        edges = new_id[edges].astype(dtype)
+    point_data = {name: v[used] for name, v in out.point_data.items()}
+    mesh = Mesh._trusted(out.points[used], new_id[out.triangles].astype(dtype),
+                         out.cell_tags, edges, edge_tags, point_data, out.cell_data,
+                         out.physical_names)
+    fam = Families(fam.member, new_id[fam.parent_triangles], new_id[fam.stencil])
+    return with_history(mesh, fam, new_id[origins])
+
+
+def _used_by(mesh: Mesh) -> NDArray[np.bool_]:
+    used = np.zeros(mesh.n_points, dtype=bool)
+    used[mesh.triangles.reshape(-1)] = True
+    return used
+
+
+def _joined(edges: NDArray[np.int64], tags: NDArray, removed: NDArray[np.bool_]
+            ) -> tuple[NDArray[np.int64], NDArray]:
+    """Tagged edges joined across the ``removed`` points: ``a -> v``, ``v -> b`` with one
+    tag become ``a -> b`` (as refinement had cut them)."""
+    if not removed[edges.reshape(-1)].any():
+        return edges, tags
+    out = np.empty_like(edges)
+    keep = np.zeros(edges.shape[0], dtype=bool)
+    nxt = np.full(removed.size, -1, dtype=np.int64)
+    starts = np.flatnonzero(removed[edges[:, 0]])
+    nxt[edges[starts, 0]] = starts
+    bad = _join(edges, np.asarray(tags), removed, nxt, out, keep)
+    if bad >= 0:
+        raise ValueError(f"cannot coarsen: tagged edge {bad} ({edges[bad, 0]}, "
+                         f"{edges[bad, 1]}) ends at a point that coarsening removes, with "
+                         "no tagged edge of the same tag going on from it")
+    return out[keep], np.asarray(tags)[keep]
+
+
+@njit(cache=True)
+def _join(edges, tags, removed, nxt, out, keep):
+    for i in range(edges.shape[0]):
+        if removed[edges[i, 0]]:
+            continue  # joined to the piece before it
+        end = edges[i, 1]
+        steps = 0
+        while removed[end]:
+            j = nxt[end]
+            if j < 0 or tags[j] != tags[i] or steps > edges.shape[0]:
+                return i
+            end = edges[j, 1]
+            steps += 1
+        out[i, 0], out[i, 1] = edges[i, 0], end
+        keep[i] = True
+    return -1

@@ -1,0 +1,245 @@
+"""Red families: the groups of triangles that are exactly a partition of one triangle of
+an origin's uniform refinements, found from the points alone and checked against the
+history (:attr:`qdrefine.Mesh.origins`); what :mod:`~qdrefine.adaptive.coarsen` undoes.
+
+The corner children of a partition give its triangle's corners by the refinement's own
+point formula (the trisection points are ``fl((2a + b) / 3)`` and ``fl((a + 2b) / 3)``),
+so they are matched bit for bit; every child of that triangle's partition must then be a
+working triangle. On a uniform lattice a group of children straddling two parents is such
+a partition too: only a triangle met by descending the origin's refinements counts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from ..mesh import Mesh
+from ..numbering import edge_point, incidence
+from ..partition import partition_many
+from ..schemes import Scheme
+from .edgekeys import oriented
+from .families import Families
+from .working import emit_full
+
+
+def red_families(mesh: Mesh, fam: Families, marked: NDArray[np.bool_], sch: Scheme
+                 ) -> NDArray[np.int64]:
+    """The red families all of whose children are marked, as rows ``(F, 3 + 3k + T)``:
+    the restored triangle ``P`` (counter-clockwise), the ``k`` points of each of its edges
+    ``(v_i, v_{i+1})`` listed from ``v_i``, and the working triangles of its children
+    (indices into :func:`working_rows`), in the partition's order."""
+    k, t_count = sch.stencil.per_edge, sch.n_children
+    if mesh.origins is None:  # no history: nothing is known to be a refinement
+        return np.empty((0, 3 + 3 * k + t_count), dtype=np.int64)
+    rows, owner = working_rows(mesh, fam)
+    chosen = np.ones(rows.shape[0], dtype=bool)  # a working triangle: all of it marked
+    member = fam.member
+    plain = member < 0
+    chosen[:int(plain.sum())] = marked[plain]
+    if fam.n_families:
+        unmarked = np.zeros(fam.n_families, dtype=bool)
+        unmarked[member[~plain & ~marked]] = True
+        chosen[int(plain.sum()):] = ~unmarked
+    tags = None if mesh.cell_tags is None else mesh.cell_tags[owner]
+    start, tris = incidence(rows, mesh.n_points)
+    points = np.ascontiguousarray(mesh.points, dtype=np.float64)
+    cand = np.flatnonzero(chosen)
+    corners = np.full((cand.size, 3, 3 + 3 * k), -1, dtype=np.int64)
+    _corner_guesses(points, rows, start, tris, cand, k, corners)
+    guess = corners.reshape(-1, 3 + 3 * k)
+    guess = guess[guess[:, 0] >= 0]
+    if not guess.size:
+        return np.empty((0, 3 + 3 * k + t_count), dtype=np.int64)
+    # one row per restored triangle: rotated to its smallest corner
+    shift = np.argmin(guess[:, :3], axis=1)
+    idx = (shift[:, None] + np.arange(3)) % 3
+    pts = guess[:, 3:].reshape(-1, 3, k)
+    guess = np.concatenate([np.take_along_axis(guess[:, :3], idx, axis=1),
+                            np.take_along_axis(pts, idx[:, :, None], axis=1).reshape(-1, 3 * k)],
+                           axis=1)
+    guess = np.unique(guess, axis=0)
+    tri3 = guess[:, :3]
+    a, b = tri3, np.roll(tri3, -1, axis=1)
+    from_lower = oriented(guess[:, 3:].reshape(-1, k), a.reshape(-1), b.reshape(-1))
+    kids = emit_full(points, tri3, from_lower.reshape(-1, 3, k), sch)  # (G, T, 3)
+    which = np.full(kids.shape[:2], -1, dtype=np.int64)
+    _find_rows(rows, start, tris, kids, which)
+    ok = (which >= 0).all(axis=1)
+    ok[ok] = chosen[which[ok]].all(axis=1)
+    if tags is not None:
+        ok[ok] = (tags[which[ok]] == tags[which[ok][:, :1]]).all(axis=1)
+    # the children share an origin, and the restored triangle is one of its refinements
+    origin = mesh.origins[owner]
+    ok[ok] = (origin[which[ok]] == origin[which[ok][:, :1]]).all(axis=(1, 2))
+    ok[ok] = in_hierarchy(points, origin[which[ok][:, 0]], tri3[ok], sch)
+    return np.concatenate([guess[ok], which[ok]], axis=1)
+
+
+#: Deepest refinement of an origin looked through for a restored triangle.
+MAX_DEPTH = 64
+
+
+def in_hierarchy(points: NDArray[np.float64], origins: NDArray[np.int64],
+                 rows: NDArray[np.int64], sch: Scheme) -> NDArray[np.bool_]:
+    """``(G,) bool``: whether triangle ``rows[g]`` is a triangle of the uniform
+    refinements of ``origins[g]`` by ``sch`` (exact: the refinements' points are made by
+    the refinement's own kernels from the origin's coordinates, as the mesh's were). Each
+    is followed down from its origin, into the child holding its centroid, until the
+    triangle is met or the child is no larger than it. A group of children that happens
+    to be a partition (on a uniform lattice, a triangle straddling two parents is one)
+    is not."""
+    g = rows.shape[0]
+    found = np.zeros(g, dtype=bool)
+    target = points[rows]  # (G, 3, 2)
+    key = _sorted_corners(target)
+    centre = target.mean(axis=1)
+    size = _twice_area(target)
+    node = points[origins]
+    todo = np.arange(g)
+    for _ in range(MAX_DEPTH):
+        if not todo.size:
+            break
+        same = (_sorted_corners(node) == key[todo]).all(axis=(1, 2))
+        found[todo[same]] = True
+        go = ~same & (_twice_area(node) > size[todo] * (1 + 1e-9))
+        todo, node = todo[go], node[go]
+        if not todo.size:
+            break
+        local, kids = partition_many(node, sch, strict=False)
+        corners = local[np.arange(todo.size)[:, None, None], kids]  # (K, T, 3, 2)
+        inside = _contains(corners, centre[todo][:, None, :])
+        hit = inside.any(axis=1)
+        todo = todo[hit]
+        node = corners[hit, np.argmax(inside[hit], axis=1)]
+    return found
+
+
+def _sorted_corners(tri: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The corners of each triangle ``(..., 3, 2)`` in lexicographic order."""
+    order = np.lexsort((tri[..., 1], tri[..., 0]), axis=-1)
+    return np.take_along_axis(tri, order[..., None], axis=-2)
+
+
+def _twice_area(tri: NDArray[np.float64]) -> NDArray[np.float64]:
+    a, b, c = tri[..., 0, :], tri[..., 1, :], tri[..., 2, :]
+    return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) \
+        - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
+
+
+def _contains(tri: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Whether the counter-clockwise triangles ``(..., 3, 2)`` hold the points ``p``
+    (inside or on the boundary; ``p`` is a centroid, well inside)."""
+    out = np.ones(tri.shape[:-2], dtype=bool)
+    for i in range(3):
+        a, b = tri[..., i, :], tri[..., (i + 1) % 3, :]
+        out &= (b[..., 0] - a[..., 0]) * (p[..., 1] - a[..., 1]) \
+            - (b[..., 1] - a[..., 1]) * (p[..., 0] - a[..., 0]) >= 0
+    return out
+
+
+def working_rows(mesh: Mesh, fam: Families) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The working triangles: the triangles that are not transition children, then one
+    parent per transition family ``(W, 3)``; and the mesh triangle of each (the family's
+    first member)."""
+    plain = np.flatnonzero(fam.member < 0)
+    rows = np.concatenate([mesh.triangles[plain].astype(np.int64), fam.parent_triangles])
+    return rows, np.concatenate([plain, fam.first()])
+
+
+@njit(cache=True)
+def _same_point(points, v, x, y):
+    return points[v, 0] == x and points[v, 1] == y
+
+
+@njit(cache=True)
+def _far_corner(points, start, tris, rows, a, p, k):
+    """The point ``b`` and ``b``'s-side point ``p2`` such that ``p`` (and ``p2``) are the
+    points of edge ``(a, b)`` by the refinement's formula, searched two working edges
+    from ``p``; ``(-1, -1)`` if there is none."""
+    for i in range(start[p], start[p + 1]):
+        for j in range(3):
+            x = rows[tris[i], j]
+            if x == a or x == p:
+                continue
+            if k == 1:
+                if _same_point(points, p, edge_point(points[a, 0], points[x, 0], 0, 1),
+                               edge_point(points[a, 1], points[x, 1], 0, 1)):
+                    return x, -1
+                continue
+            for i2 in range(start[x], start[x + 1]):
+                for j2 in range(3):
+                    y = rows[tris[i2], j2]
+                    if y == a or y == p or y == x:
+                        continue
+                    if _same_point(points, p, edge_point(points[a, 0], points[y, 0], 0, 2),
+                                   edge_point(points[a, 1], points[y, 1], 0, 2)) and \
+                            _same_point(points, x, edge_point(points[a, 0], points[y, 0], 1, 2),
+                                        edge_point(points[a, 1], points[y, 1], 1, 2)):
+                        return y, x
+    return -1, -1
+
+
+@njit(cache=True)
+def _near_point(points, start, tris, rows, b, c, j, k):
+    """The working-mesh neighbour of ``b`` at point ``j`` of edge ``(b, c)`` (from ``b``),
+    or -1."""
+    x0 = edge_point(points[b, 0], points[c, 0], j, k)
+    x1 = edge_point(points[b, 1], points[c, 1], j, k)
+    for i in range(start[b], start[b + 1]):
+        for m in range(3):
+            v = rows[tris[i], m]
+            if v != b and _same_point(points, v, x0, x1):
+                return v
+    return -1
+
+
+@njit(cache=True)
+def _corner_guesses(points, rows, start, tris, cand, k, out):
+    """For each candidate working triangle and each of its vertices ``a``: if it is the
+    corner child at ``a`` of a triangle ``(a, b, c)``, that triangle and its edges'
+    points (from ``v_i`` along ``(v_i, v_{i+1})``) into ``out[i, j]``."""
+    for i in range(cand.shape[0]):
+        t = cand[i]
+        for j in range(3):
+            a, p, q = rows[t, j], rows[t, (j + 1) % 3], rows[t, (j + 2) % 3]
+            b, p2 = _far_corner(points, start, tris, rows, a, p, k)
+            if b < 0:
+                continue
+            c, q2 = _far_corner(points, start, tris, rows, a, q, k)
+            if c < 0:
+                continue
+            r1 = _near_point(points, start, tris, rows, b, c, 0, k)
+            if r1 < 0:
+                continue
+            out[i, j, 0], out[i, j, 1], out[i, j, 2] = a, b, c
+            if k == 1:
+                out[i, j, 3], out[i, j, 4], out[i, j, 5] = p, r1, q
+            else:
+                r2 = _near_point(points, start, tris, rows, c, b, 0, k)
+                if r2 < 0:
+                    out[i, j, 0] = -1
+                    continue
+                out[i, j, 3], out[i, j, 4] = p, p2
+                out[i, j, 5], out[i, j, 6] = r1, r2
+                out[i, j, 7], out[i, j, 8] = q2, q
+
+
+@njit(cache=True)
+def _find_rows(rows, start, tris, kids, which):
+    """``which[g, c]``: the working triangle with the vertices of ``kids[g, c]`` (in any
+    rotation), -1 if none."""
+    for g in range(kids.shape[0]):
+        for c in range(kids.shape[1]):
+            x, y, z = kids[g, c, 0], kids[g, c, 1], kids[g, c, 2]
+            for i in range(start[x], start[x + 1]):
+                t = tris[i]
+                hit = 0
+                for m in range(3):
+                    v = rows[t, m]
+                    if v == y or v == z:
+                        hit += 1
+                if hit == 2:
+                    which[g, c] = t
+                    break

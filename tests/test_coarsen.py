@@ -1,0 +1,231 @@
+"""Coarsening (``qdrefine.coarsen``): the inverse of local refinement, on Gmsh-made meshes
+and on grids (where a group of children straddling two parents is a partition too)."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import qdrefine
+from qdrefine import Mesh, coarsen, examples, marking, refine
+from qdrefine.adaptive import coarsen_marked
+from qdrefine.adaptive import red_families as red_module
+from qdrefine.adaptive.history import families_of
+from qdrefine.topology import conformity, euler_characteristic
+
+SCHEMES = ["7t-qd", "7t-le", "7t-d", "4t-le", "4t-red"]
+
+
+def _rows(mesh):
+    """Triangle rows, each rotated to start at its smallest id."""
+    t = mesh.triangles.astype(np.int64)
+    shift = np.argmin(t, axis=1)[:, None]
+    return np.take_along_axis(t, (shift + np.arange(3)) % 3, axis=1)
+
+
+def _twice_areas(mesh):
+    p = mesh.points[mesh.triangles]
+    return ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+            - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+
+
+def _with_data(mesh):
+    """``mesh`` with a linear point field and a cell field."""
+    x, y = mesh.points.T
+    return mesh.replace(point_data={"u": 2.0 * x - 3.0 * y + 1.0},
+                        cell_data={"id": np.arange(mesh.n_triangles) % 5})
+
+
+def _all_the_way_back(mesh, scheme):
+    """Coarsen everything until nothing changes."""
+    for _ in range(20):
+        out = coarsen(mesh, np.ones(mesh.n_triangles, dtype=bool), scheme)
+        if out.n_triangles == mesh.n_triangles:
+            return out
+        mesh = out
+    raise AssertionError("coarsening did not stop")
+
+
+def _assert_same(a, b):
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(_rows(a), _rows(b))
+    for name in ("cell_tags", "edges", "edge_tags"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    assert dict(a.physical_names) == dict(b.physical_names)
+    for name in b.point_data:
+        np.testing.assert_array_equal(a.point_data[name], b.point_data[name])
+    for name in b.cell_data:
+        np.testing.assert_array_equal(a.cell_data[name], b.cell_data[name])
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize("name", ["l_shape", "plate_with_hole", "boundary_layer", "grid"])
+def test_coarsening_everything_gives_the_input_back(name, scheme):
+    """Three cycles of local refinement (random marks, marks on transition children
+    among them), then coarsening of every triangle, again and again: the input comes
+    back, bit for bit: points, triangles in their order, tags, tagged edges (joined
+    again), physical names, point and cell data; with no transitions left."""
+    base = examples.square(4) if name == "grid" else examples.gmsh_mesh(name)
+    base = _with_data(base)
+    mesh = base
+    for cycle in range(3):
+        mesh = refine(mesh, scheme, marked=marking.mark_random(mesh, 0.15, seed=cycle))
+    assert mesh.origins is not None and mesh.transitions is not None
+    back = _all_the_way_back(mesh, scheme)
+    _assert_same(back, base)
+    assert back.transitions is None
+    np.testing.assert_array_equal(back.origins, base.triangles)
+
+
+def _valid(mesh, before):
+    """Conforming, oriented, the same region and topology, every triangle in its origin,
+    and a history the next refinement reads."""
+    assert conformity(mesh).ok
+    assert (_twice_areas(mesh) > 0).all()
+    assert euler_characteristic(mesh) == euler_characteristic(before)
+    assert np.isclose(_twice_areas(mesh).sum(), _twice_areas(before).sum(), rtol=1e-12)
+    Mesh(mesh.points, mesh.triangles, mesh.cell_tags, mesh.edges, mesh.edge_tags)
+    origin = mesh.points[mesh.origins]  # (M, 3, 2)
+    centre = mesh.points[mesh.triangles].mean(axis=1)
+    for i in range(3):
+        a, b = origin[:, i], origin[:, (i + 1) % 3]
+        assert ((b[:, 0] - a[:, 0]) * (centre[:, 1] - a[:, 1])
+                - (b[:, 1] - a[:, 1]) * (centre[:, 0] - a[:, 0]) > 0).all()
+    families_of(mesh, 2)
+
+
+@settings(max_examples=12, deadline=None)
+@given(ops=st.lists(st.tuples(st.booleans(), st.floats(0.05, 0.6), st.integers(0, 10**6)),
+                    min_size=2, max_size=7),
+       name=st.sampled_from(["l_shape", "plate_with_hole", "step"]))
+def test_refining_and_coarsening_in_any_order_keeps_a_valid_mesh(ops, name):
+    """Any sequence of local refinements and coarsenings with random marks (7T-QD): the
+    mesh stays conforming, covers the same region, each triangle lies in its origin,
+    and coarsening everything afterwards gives the input back."""
+    base = examples.gmsh_mesh(name)
+    mesh = base
+    for refine_step, fraction, seed in ops:
+        marked = marking.mark_random(mesh, fraction, seed=seed)
+        out = refine(mesh, "7t-qd", marked=marked) if refine_step else \
+            coarsen(mesh, marked) if mesh.origins is not None else mesh
+        if out is not mesh:
+            _valid(out, mesh)
+        mesh = out
+    if mesh.origins is not None:
+        _assert_same(_all_the_way_back(mesh, "7t-qd"), base)
+
+
+def test_coarsening_is_local():
+    """Coarsening a box changes nothing more than two vertex rings away from it."""
+    mesh = examples.gmsh_mesh("plate_with_hole")
+    for cycle in range(3):
+        mesh = refine(mesh, marked=marking.mark_random(mesh, 0.3, seed=cycle))
+    box = marking.mark_box(mesh, (-1, -1, -0.3, -0.3))
+    out, parents = coarsen_marked(mesh, box)
+    assert out.n_triangles < mesh.n_triangles
+    near = box.copy()
+    for _ in range(2):
+        touched = np.zeros(mesh.n_points, dtype=bool)
+        touched[mesh.triangles[near].reshape(-1)] = True
+        near = touched[mesh.triangles].any(axis=1)
+    # the triangles far from the box are in the output, as they were
+    far = np.flatnonzero(~near)
+    kept = {tuple(r) for r in out.points[out.triangles].reshape(-1, 6).tolist()}
+    assert all(tuple(r) in kept for r in mesh.points[mesh.triangles[far]].reshape(-1, 6).tolist())
+    assert set(parents.tolist()) >= set(far.tolist())
+
+
+@pytest.mark.parametrize("scheme, base", [("4t-le", examples.square(3)),
+                                          ("7t-qd", examples.plate_with_hole())])
+def test_a_lattice_partition_that_is_no_parent_is_not_restored(scheme, base, monkeypatch):
+    """On uniformly refined meshes, groups of children straddling two parents are exact
+    partitions too (with 4T-LE on a grid, two levels down: 44 of 116; with 7T-QD on the
+    plate, three levels down: 12 of 18,828): they are found, and refused, because no
+    descent from their origin meets them. Taking them anyway gives another mesh, or none;
+    refusing them, everything comes back."""
+    levels = 2 if scheme == "4t-le" else 3
+    mesh = base
+    for _ in range(levels):
+        mesh = refine(mesh, scheme, marked=np.ones(mesh.n_triangles, dtype=bool))
+    everything = np.ones(mesh.n_triangles, dtype=bool)
+    accepted = []
+    check = red_module.in_hierarchy
+    monkeypatch.setattr(red_module, "in_hierarchy",
+                        lambda *a: accepted.append(check(*a)) or accepted[-1])
+    right = coarsen(mesh, everything, scheme)
+    assert (~np.concatenate(accepted)).any()  # lattice partitions were found and refused
+    monkeypatch.setattr(red_module, "in_hierarchy", lambda *a: np.ones(a[2].shape[0], bool))
+    try:
+        wrong = coarsen(mesh, everything, scheme)
+    except (ValueError, RuntimeError):
+        wrong = None
+    assert wrong is None or wrong.n_triangles != right.n_triangles \
+        or not np.array_equal(_rows(wrong), _rows(right))
+    monkeypatch.undo()
+    _assert_same(_all_the_way_back(right, scheme), base)
+
+
+def test_without_history_nothing_changes():
+    mesh = refine(examples.square(2), levels=1)  # uniform: no origins
+    assert mesh.origins is None
+    assert coarsen(mesh, np.ones(mesh.n_triangles, dtype=bool)) is mesh
+
+
+def test_history_travels_through_uniform_refinement_and_files(tmp_path):
+    """Uniform refinement carries the origins to the children; files that hold cell data
+    keep them (``qdrefine:origins``), so a mesh read back coarsens as in memory."""
+    mesh = refine(examples.gmsh_mesh("l_shape"), marked=np.arange(0, 126, 4))
+    fine = refine(mesh, levels=1)
+    np.testing.assert_array_equal(fine.origins, np.repeat(mesh.origins, 7, axis=0))
+    for suffix in (".msh", ".vtu"):
+        path = tmp_path / f"m{suffix}"
+        qdrefine.write(path, mesh)
+        again = qdrefine.read(path)
+        np.testing.assert_array_equal(again.origins, mesh.origins)
+        everything = np.ones(mesh.n_triangles, dtype=bool)
+        _assert_same(coarsen(again, everything), coarsen(mesh, everything))
+
+
+def test_a_tagged_piece_alone_is_refused():
+    """A tagged edge that refinement did not cut (a piece tagged on its own) ends at a
+    point coarsening removes: one clear error, not a silently dropped tag."""
+    mesh = refine(examples.gmsh_mesh("l_shape"), marked=[0])
+    inner = mesh.triangles[0, :2]  # an edge of a child, not on a tagged edge
+    tagged = mesh.replace(edges=np.concatenate([mesh.edges, [inner]]),
+                          edge_tags=np.concatenate([mesh.edge_tags, [7]]))
+    with pytest.raises(ValueError, match="cannot coarsen: tagged edge"):
+        coarsen(tagged, np.ones(mesh.n_triangles, dtype=bool))
+
+
+def _corner_sets(mesh, rows=None):
+    """Each triangle as its three corners' coordinates, sorted (any rotation alike)."""
+    p = mesh.points[mesh.triangles if rows is None else mesh.triangles[rows]]
+    order = np.lexsort((p[..., 1], p[..., 0]), axis=-1)
+    return {tuple(r) for r in
+            np.take_along_axis(p, order[..., None], axis=-2).reshape(-1, 6).tolist()}
+
+
+def test_a_moving_front_leaves_nothing_behind():
+    """Refine a band around a moving line twice per step, coarsen what it left until
+    nothing changes: a few input triangles behind the band the mesh is the input again
+    (nearer, a restored triangle whose neighbour is still two levels finer keeps its
+    children), and the quality never falls under the computed bound."""
+    from qdrefine.adaptive.bounds import quality_bound
+    from qdrefine.quality import min_angles
+
+    base = examples.gmsh_mesh("l_shape")  # edges of about 0.25
+    bound = quality_bound(base, "7t-qd", levels=6)
+    original = _corner_sets(base)
+    mesh = base
+    for step in range(8):
+        x = -0.9 + 0.2 * step
+        for _ in range(2):
+            mesh = refine(mesh, marked=np.abs(marking.centroids(mesh)[:, 0] - x) < 0.08)
+        for _ in range(20):
+            before = mesh
+            mesh = coarsen(mesh, marking.centroids(mesh)[:, 0] < x - 0.2)
+            if mesh.n_triangles == before.n_triangles:
+                break
+        assert min_angles(mesh).min() >= bound.ratio * bound.initial - 1e-9
+        behind = np.flatnonzero(marking.centroids(mesh)[:, 0] < x - 0.8)
+        assert _corner_sets(mesh, behind) <= original
