@@ -12,9 +12,10 @@ a partition too: only a triangle met by descending the origin's refinements coun
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import NDArray
 
+from ..jit import threads_for
 from ..mesh import Mesh
 from ..numbering import edge_point, incidence
 from ..partition import partition_many
@@ -47,7 +48,8 @@ def red_families(mesh: Mesh, fam: Families, marked: NDArray[np.bool_], sch: Sche
     points = np.ascontiguousarray(mesh.points, dtype=np.float64)
     cand = np.flatnonzero(chosen)
     corners = np.full((cand.size, 3, 3 + 3 * k), -1, dtype=np.int64)
-    _corner_guesses(points, rows, start, tris, cand, k, corners)
+    with threads_for(cand.size):
+        _corner_guesses(points, rows, start, tris, cand, k, corners)
     guess = corners.reshape(-1, 3 + 3 * k)
     guess = guess[guess[:, 0] >= 0]
     if not guess.size:
@@ -154,24 +156,39 @@ def _same_point(points, v, x, y):
 
 
 @njit(cache=True)
+def _near(points, v, x, y, tol):
+    return abs(points[v, 0] - x) <= tol and abs(points[v, 1] - y) <= tol
+
+
+@njit(cache=True)
 def _far_corner(points, start, tris, rows, a, p, k):
     """The point ``b`` and ``b``'s-side point ``p2`` such that ``p`` (and ``p2``) are the
     points of edge ``(a, b)`` by the refinement's formula, searched two working edges
-    from ``p``; ``(-1, -1)`` if there is none."""
+    from ``p`` (only among the points near where they would be, then exactly);
+    ``(-1, -1)`` if there is none."""
+    dx, dy = points[p, 0] - points[a, 0], points[p, 1] - points[a, 1]
+    # far below the edge, far above rounding: the exact test decides
+    tol = 1e-6 * (abs(dx) + abs(dy)) + 1e-13 * (abs(points[p, 0]) + abs(points[p, 1]))
+    bx, by = points[a, 0] + (k + 1) * dx, points[a, 1] + (k + 1) * dy  # b, about
+    if k == 1:
+        for i in range(start[p], start[p + 1]):
+            for j in range(3):
+                y = rows[tris[i], j]
+                if y != a and y != p and _near(points, y, bx, by, tol) and \
+                        _same_point(points, p, edge_point(points[a, 0], points[y, 0], 0, 1),
+                                    edge_point(points[a, 1], points[y, 1], 0, 1)):
+                    return y, -1
+        return -1, -1
     for i in range(start[p], start[p + 1]):
         for j in range(3):
             x = rows[tris[i], j]
-            if x == a or x == p:
-                continue
-            if k == 1:
-                if _same_point(points, p, edge_point(points[a, 0], points[x, 0], 0, 1),
-                               edge_point(points[a, 1], points[x, 1], 0, 1)):
-                    return x, -1
+            if x == a or x == p or not _near(points, x, points[a, 0] + 2 * dx,
+                                             points[a, 1] + 2 * dy, tol):
                 continue
             for i2 in range(start[x], start[x + 1]):
                 for j2 in range(3):
                     y = rows[tris[i2], j2]
-                    if y == a or y == p or y == x:
+                    if y == a or y == p or y == x or not _near(points, y, bx, by, tol):
                         continue
                     if _same_point(points, p, edge_point(points[a, 0], points[y, 0], 0, 2),
                                    edge_point(points[a, 1], points[y, 1], 0, 2)) and \
@@ -195,12 +212,13 @@ def _near_point(points, start, tris, rows, b, c, j, k):
     return -1
 
 
-@njit(cache=True)
+@njit(parallel=True, cache=True)
 def _corner_guesses(points, rows, start, tris, cand, k, out):
     """For each candidate working triangle and each of its vertices ``a``: if it is the
     corner child at ``a`` of a triangle ``(a, b, c)``, that triangle and its edges'
-    points (from ``v_i`` along ``(v_i, v_{i+1})``) into ``out[i, j]``."""
-    for i in range(cand.shape[0]):
+    points (from ``v_i`` along ``(v_i, v_{i+1})``) into ``out[i, j]`` (each candidate
+    on its own: bit-identical on any number of threads)."""
+    for i in prange(cand.shape[0]):
         t = cand[i]
         for j in range(3):
             a, p, q = rows[t, j], rows[t, (j + 1) % 3], rows[t, (j + 2) % 3]
