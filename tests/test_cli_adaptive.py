@@ -174,3 +174,36 @@ def test_negative_box_and_any_case_scheme_names(tmp_path):
     expected = qdrefine.refine(qdrefine.read(src), "7t-qd",
                                marked=mark_box(qdrefine.read(src), (-1, -1, -0.5, -0.5)))
     same_mesh(qdrefine.read(out), expected)
+
+
+def test_coarsen_undoes_refine(tmp_path, run):
+    """``qdrefine coarsen --all --cycles K`` after ``qdrefine refine --mark-box --cycles
+    3``: the input again (points, triangles, tags); a box coarsens as the API does."""
+    fine = tmp_path / "fine.msh"
+    assert run("refine", SRC, fine, "--mark-box", "0,0,0.3,0.3", "--cycles", "3",
+               "--quiet").returncode == 0
+    back = tmp_path / "back.msh"
+    result = run("coarsen", fine, back, "--all", "--cycles", "5")
+    assert result.returncode == 0, result.stderr
+    assert re.search(r"back\.msh: \d+ triangles, \d+ points \(\d+ fewer by 7t-qd in 5 "
+                     r"cycles, [\d.]+ s\)", result.stdout)
+    coarse, again = qdrefine.read(SRC), qdrefine.read(back)
+    np.testing.assert_array_equal(again.points, coarse.points)
+    np.testing.assert_array_equal(np.sort(again.triangles, axis=1),
+                                  np.sort(coarse.triangles, axis=1))
+    np.testing.assert_array_equal(again.cell_tags, coarse.cell_tags)
+    half = tmp_path / "half.vtu"
+    assert run("coarsen", fine, half, "--mark-box", "0,0,0.1,0.3", "--quiet").returncode == 0
+    expected = qdrefine.coarsen(qdrefine.read(fine), mark_box(qdrefine.read(fine),
+                                                              (0, 0, 0.1, 0.3)))
+    np.testing.assert_array_equal(qdrefine.read(half).triangles, expected.triangles)
+
+
+def test_coarsen_needs_the_history(tmp_path, run):
+    out = tmp_path / "out.msh"
+    result = run("coarsen", SRC, out, "--all")
+    assert result.returncode == 1
+    assert result.stderr.startswith(f"qdrefine: error: {SRC}: no refinement history")
+    assert result.stderr.count("\n") == 1 and not out.exists()
+    result = run("coarsen", SRC, out)
+    assert result.returncode == 2 and "--all is required" in result.stderr

@@ -21,7 +21,7 @@ __all__ = ["main", "COMMANDS"]
 
 #: Subcommands in the order ``--help`` lists them (module ``qdrefine.cli.<name>``).
 COMMANDS: tuple[str, ...] = (
-    "refine", "check", "info", "quality", "plot", "compare", "convert", "clean", "demo",
+    "refine", "coarsen", "check", "info", "quality", "plot", "compare", "convert", "clean", "demo",
     "diagram", "paper",
 )
 

@@ -5,26 +5,19 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Callable
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ..adaptive import refine_marked
 from ..io import RawMesh, mesh_of, read_raw, write
-from ..marking import mark_box, mark_file, mark_tag
 from ..memory import check_memory
 from ..mesh import Mesh
 from ..refine import refine
 from ..schemes import get_scheme, scheme_names
 from ..uniform import RefusedTriangle
-from . import _common
+from . import _common, marks
 
 HELP = "refine every triangle of a mesh file, or only marked ones, with a 7T (or 4T) scheme"
-
-#: ``mark(mesh, parents) -> (M,) bool``; ``parents`` maps ``mesh`` to the input mesh.
-Marker = Callable[[Mesh, NDArray[np.int64]], NDArray[np.bool_]]
-
 
 def add_args(parser: argparse.ArgumentParser) -> None:
     _common.setup(parser)
@@ -56,17 +49,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
         "local refinement", "Refine only marked triangles (and a conforming closure around "
         "them); transitions are coarsened before a later cycle refines them "
         "(docs/adaptive.md).")
-    mark = local.add_mutually_exclusive_group()
-    mark.add_argument("--mark-tag", type=_tags, metavar="T[,T...]",
-                      help="mark the triangles with these cell tags")
-    mark.add_argument("--mark-box", type=_box, metavar="x0,y0,x1,y1",
-                      help="mark the triangles that meet this closed box (a negative "
-                           "x0 works as it is: --mark-box -1,-1,0,0)")
-    mark.add_argument("--mark-file", metavar="F",
-                      help="mark the triangles listed in F: ids of IN's triangles (0-based, "
-                           "whitespace separated, '#' comments), or a .npy file of ids or "
-                           "of a boolean mask; with --cycles, each cycle marks everything "
-                           "inside them again")
+    marks.add_options(local.add_mutually_exclusive_group())
     local.add_argument("--cycles", type=_common.non_negative, default=None, metavar="K",
                        help="mark and refine K times (default 1); tags and boxes are "
                             "re-evaluated on each cycle's mesh")
@@ -103,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _check_options(args: argparse.Namespace) -> int:
     """Option combinations argparse cannot express; returns the number of refinements."""
-    marked = any(v is not None for v in (args.mark_tag, args.mark_box, args.mark_file))
+    marked = marks.given(args)
     if args.cycles is not None and not marked:
         raise ValueError("--cycles needs a mark: --mark-tag, --mark-box or --mark-file")
     if args.levels is not None and marked:
@@ -116,7 +99,7 @@ def _check_options(args: argparse.Namespace) -> int:
 
 def _refiner(args: argparse.Namespace):
     """The refinement path for these options: ``f(mesh, args, progress) -> (mesh, text)``."""
-    if any(v is not None for v in (args.mark_tag, args.mark_box, args.mark_file)):
+    if marks.given(args):
         return _local
     return _uniform
 
@@ -178,7 +161,7 @@ def _local(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress,
            raw: RawMesh) -> tuple[Mesh, str]:
     """``--cycles`` rounds of mark and refine (transitions coarsened before refined)."""
     cycles = 1 if args.cycles is None else args.cycles
-    mark = _marker(mesh, args)
+    mark = marks.marker(mesh, args)
     parents = np.arange(mesh.n_triangles, dtype=np.int64)
     n0, n_marked = mesh.n_triangles, 0
     for cycle in range(1, cycles + 1):
@@ -189,44 +172,3 @@ def _local(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress,
         parents = parents[step]
     return mesh, (f"{n_marked} triangles marked, {mesh.n_triangles - n0} added by "
                   f"{args.scheme} in {cycles} cycle{'s' if cycles != 1 else ''}")
-
-
-def _marker(mesh: Mesh, args: argparse.Namespace) -> Marker:
-    """The marking rule of the options, checked on the input mesh."""
-    if args.mark_tag is not None:
-        known = np.unique(mesh.cell_tags) if mesh.cell_tags is not None else []
-        missing = sorted(set(args.mark_tag) - set(np.asarray(known).tolist()))
-        if missing:
-            raise ValueError(f"{args.input}: no triangle has cell tag {missing[0]} (cell "
-                             f"tags: {', '.join(map(str, known)) or 'none'})")
-        return lambda m, _: mark_tag(m, args.mark_tag)
-    if args.mark_box is not None:
-        if not mark_box(mesh, args.mark_box).any():
-            raise ValueError(f"{args.input}: the box {','.join(map(str, args.mark_box))} "
-                             "meets no triangle")
-        return lambda m, _: mark_box(m, args.mark_box)
-    first = mark_file(mesh, args.mark_file)
-    return lambda _, parents: first[parents]
-
-
-def _tags(text: str) -> list[int]:
-    """argparse type: ``T[,T...]`` integers."""
-    try:
-        return [int(t) for t in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected integer cell tags like 1 or 1,2; got "
-                                         f"{text!r}") from None
-
-
-def _box(text: str) -> tuple[float, float, float, float]:
-    """argparse type: ``x0,y0,x1,y1`` with ``x0 <= x1`` and ``y0 <= y1``."""
-    words = text.split(",")
-    try:
-        box = tuple(float(w) for w in words)
-    except ValueError:
-        box = ()
-    if len(box) != 4 or not np.isfinite(box).all():
-        raise argparse.ArgumentTypeError(f"expected four numbers x0,y0,x1,y1; got {text!r}")
-    if box[0] > box[2] or box[1] > box[3]:
-        raise argparse.ArgumentTypeError(f"expected x0 <= x1 and y0 <= y1; got {text!r}")
-    return box  # type: ignore[return-value]

@@ -1,0 +1,80 @@
+"""``qdrefine coarsen IN OUT``: undo local refinement where every child of a partition is
+marked (:func:`qdrefine.coarsen`)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from ..adaptive import coarsen_marked
+from ..io import mesh_of, read_raw, write
+from ..schemes import get_scheme, scheme_names
+from . import _common, marks
+
+HELP = "undo local refinement where every child of a partition is marked"
+
+
+def add_args(parser: argparse.ArgumentParser) -> None:
+    _common.setup(parser)
+    parser.epilog = ("IN must carry the refinement history that 'qdrefine refine --mark-...' "
+                     "writes into formats with cell data (.msh, .vtu, .xdmf, .vtk). Each "
+                     "cycle undoes one level where all children of a partition are marked; "
+                     "transitions keep the mesh conforming. Examples: qdrefine coarsen "
+                     "fine.msh coarse.msh --mark-box 0,0,0.5,1; qdrefine coarsen fine.msh "
+                     "coarse.msh --all --cycles 3")
+    parser.add_argument("input", metavar="IN", help="mesh file to read (never modified)")
+    parser.add_argument("output", metavar="OUT",
+                        help="mesh file to write (written atomically; .msh is Gmsh 4.1 unless "
+                             "--format-version 2.2)")
+    parser.add_argument("--scheme", default="7t-qd", metavar="NAME",
+                        help=f"the scheme IN was refined with: one of "
+                             f"{', '.join(scheme_names())} (default 7t-qd)")
+    parser.add_argument("--binary", action="store_true",
+                        help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply")
+    _common.add_format_version(parser)
+    _common.add_compress(parser)
+    group = parser.add_argument_group("marks", "The triangles that may go (one is needed).")
+    mark = group.add_mutually_exclusive_group(required=True)
+    marks.add_options(mark)
+    mark.add_argument("--all", action="store_true", help="mark every triangle")
+    group.add_argument("--cycles", type=_common.non_negative, default=None, metavar="K",
+                       help="mark and coarsen K times, one level each (default 1); tags and "
+                            "boxes are re-evaluated on each cycle's mesh")
+
+
+def run(args: argparse.Namespace) -> int:
+    with _common.session():
+        args.scheme = get_scheme(args.scheme).name  # any case; unknown fails before reading
+        _common.check_output(args.output, (args.input,), binary=args.binary)
+        _common.check_format_version(args.output, args.format_version)
+        _common.check_compress(args.output, args.compress)
+        cycles = 1 if args.cycles is None else args.cycles
+        start = time.perf_counter()
+        with _common.Progress(cycles + 2, args.quiet) as progress:
+            progress.step(f"reading {args.input}")
+            mesh = mesh_of(read_raw(args.input))
+            if mesh.origins is None:
+                raise ValueError(f"{args.input}: no refinement history to coarsen (the cell "
+                                 "data qdrefine:origins that 'qdrefine refine --mark-...' "
+                                 "writes into .msh, .vtu, .xdmf and .vtk files)")
+            mark = (lambda m, _: np.ones(m.n_triangles, dtype=bool)) if args.all else \
+                marks.marker(mesh, args)
+            parents = np.arange(mesh.n_triangles, dtype=np.int64)
+            n0 = mesh.n_triangles
+            for cycle in range(1, cycles + 1):
+                progress.step(f"coarsening, cycle {cycle}/{cycles}")
+                try:
+                    mesh, step = coarsen_marked(mesh, mark(mesh, parents), args.scheme)
+                except ValueError as exc:  # e.g. a tagged piece refinement did not cut
+                    raise ValueError(f"{args.input}: {exc}") from None
+                parents = parents[step]
+            progress.step(f"writing {args.output}")
+            write(args.output, mesh, binary=args.binary or None,
+                  format_version=args.format_version, compress=args.compress)
+        if not args.quiet:
+            print(f"{args.output}: {mesh.n_triangles} triangles, {mesh.n_points} points "
+                  f"({n0 - mesh.n_triangles} fewer by {args.scheme} in {cycles} "
+                  f"cycle{'s' if cycles != 1 else ''}, {time.perf_counter() - start:.2f} s)")
+    return 0
