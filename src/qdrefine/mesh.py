@@ -61,13 +61,10 @@ def _names(names: Mapping[tuple[int, int], str] | None) -> Mapping[tuple[int, in
 def _transitions(rows: ArrayLike | None, triangles: NDArray, n_points: int
                  ) -> NDArray[np.int64] | None:
     """The history rows ``(M, 3)``: ``-1`` rows or vertex rows of existing points."""
-    if rows is None:
-        return None
-    a = np.array(rows, dtype=np.int64)
-    if a.shape != triangles.shape:
-        raise ValueError(f"transitions must have shape {triangles.shape}, got {a.shape}")
-    if a.size and (a.min() < -1 or a.max() >= n_points
-                   or ((a == -1).any(axis=1) & (a != -1).any(axis=1)).any()):
+    a = _rows_of(rows, triangles, "transitions")
+    if a is not None and a.size and (
+            a.min() < -1 or a.max() >= n_points
+            or ((a == -1).any(axis=1) & (a != -1).any(axis=1)).any()):
         raise ValueError("transitions: each row is a vertex row or all -1")
     return a
 
@@ -75,13 +72,20 @@ def _transitions(rows: ArrayLike | None, triangles: NDArray, n_points: int
 def _origins(rows: ArrayLike | None, triangles: NDArray, n_points: int
              ) -> NDArray[np.int64] | None:
     """The origin rows ``(M, 3)``: vertex rows of existing points."""
+    a = _rows_of(rows, triangles, "origins")
+    if a is not None and a.size and (a.min() < 0 or a.max() >= n_points):
+        raise ValueError(f"origins: vertex ids must be in 0..{n_points - 1}")
+    return a
+
+
+def _rows_of(rows: ArrayLike | None, triangles: NDArray, name: str
+             ) -> NDArray[np.int64] | None:
+    """``rows`` as an int64 copy with the shape of ``triangles``, or None."""
     if rows is None:
         return None
     a = np.array(rows, dtype=np.int64)
     if a.shape != triangles.shape:
-        raise ValueError(f"origins must have shape {triangles.shape}, got {a.shape}")
-    if a.size and (a.min() < 0 or a.max() >= n_points):
-        raise ValueError(f"origins: vertex ids must be in 0..{n_points - 1}")
+        raise ValueError(f"{name} must have shape {triangles.shape}, got {a.shape}")
     return a
 
 

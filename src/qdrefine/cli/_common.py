@@ -9,11 +9,11 @@ import math
 import os
 import sys
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from ..io import FORMATS, GMSH_VERSIONS, atomic_path
+from ..io import FORMATS, GMSH_VERSIONS, atomic_path, write
 
 #: Extension of a chunked Zarr mesh store (:mod:`qdrefine.store`).
 STORE = ".zarr"
@@ -34,6 +34,34 @@ def setup(parser: argparse.ArgumentParser, quiet: bool = True) -> None:
     if quiet:
         parser.add_argument("-q", "--quiet", action="store_true",
                             help="print nothing but errors and warnings; no progress bar")
+
+
+def add_mesh_in_out(parser: argparse.ArgumentParser, options: Callable[[], None]) -> None:
+    """``IN`` and ``OUT`` mesh files, then ``options()`` (the command's own), then how OUT
+    is written: ``--binary``, ``--format-version``, ``--compress``."""
+    parser.add_argument("input", metavar="IN", help="mesh file to read (never modified)")
+    parser.add_argument("output", metavar="OUT",
+                        help="mesh file to write (written atomically; .msh is Gmsh 4.1 unless "
+                             "--format-version 2.2)")
+    options()
+    parser.add_argument("--binary", action="store_true",
+                        help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply "
+                             "(much faster for large meshes)")
+    add_format_version(parser)
+    add_compress(parser)
+
+
+def check_mesh_output(args: argparse.Namespace) -> None:
+    """The checks of :func:`add_mesh_in_out`'s OUT and options, before IN is read."""
+    check_output(args.output, (args.input,), binary=args.binary)
+    check_format_version(args.output, args.format_version)
+    check_compress(args.output, args.compress)
+
+
+def write_mesh(args: argparse.Namespace, mesh: Any) -> None:
+    """Write ``mesh`` to OUT as :func:`add_mesh_in_out`'s options say."""
+    write(args.output, mesh, binary=args.binary or None, format_version=args.format_version,
+          compress=args.compress)
 
 
 def add_format_version(parser: argparse.ArgumentParser) -> None:

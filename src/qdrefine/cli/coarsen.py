@@ -9,7 +9,7 @@ import time
 import numpy as np
 
 from ..adaptive import coarsen_marked
-from ..io import mesh_of, read_raw, write
+from ..io import mesh_of, read_raw
 from ..schemes import get_scheme, scheme_names
 from . import _common, marks
 
@@ -24,17 +24,10 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                      "transitions keep the mesh conforming. Examples: qdrefine coarsen "
                      "fine.msh coarse.msh --mark-box 0,0,0.5,1; qdrefine coarsen fine.msh "
                      "coarse.msh --all --cycles 3")
-    parser.add_argument("input", metavar="IN", help="mesh file to read (never modified)")
-    parser.add_argument("output", metavar="OUT",
-                        help="mesh file to write (written atomically; .msh is Gmsh 4.1 unless "
-                             "--format-version 2.2)")
-    parser.add_argument("--scheme", default="7t-qd", metavar="NAME",
-                        help=f"the scheme IN was refined with: one of "
-                             f"{', '.join(scheme_names())} (default 7t-qd)")
-    parser.add_argument("--binary", action="store_true",
-                        help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply")
-    _common.add_format_version(parser)
-    _common.add_compress(parser)
+    _common.add_mesh_in_out(parser, lambda: parser.add_argument(
+        "--scheme", default="7t-qd", metavar="NAME",
+        help=f"the scheme IN was refined with: one of {', '.join(scheme_names())} "
+             "(default 7t-qd)"))
     group = parser.add_argument_group("marks", "The triangles that may go (one is needed).")
     mark = group.add_mutually_exclusive_group(required=True)
     marks.add_options(mark)
@@ -47,9 +40,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     with _common.session():
         args.scheme = get_scheme(args.scheme).name  # any case; unknown fails before reading
-        _common.check_output(args.output, (args.input,), binary=args.binary)
-        _common.check_format_version(args.output, args.format_version)
-        _common.check_compress(args.output, args.compress)
+        _common.check_mesh_output(args)
         cycles = 1 if args.cycles is None else args.cycles
         start = time.perf_counter()
         with _common.Progress(cycles + 2, args.quiet) as progress:
@@ -71,8 +62,7 @@ def run(args: argparse.Namespace) -> int:
                     raise ValueError(f"{args.input}: {exc}") from None
                 parents = parents[step]
             progress.step(f"writing {args.output}")
-            write(args.output, mesh, binary=args.binary or None,
-                  format_version=args.format_version, compress=args.compress)
+            _common.write_mesh(args, mesh)
         if not args.quiet:
             print(f"{args.output}: {mesh.n_triangles} triangles, {mesh.n_points} points "
                   f"({n0 - mesh.n_triangles} fewer by {args.scheme} in {cycles} "

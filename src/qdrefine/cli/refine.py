@@ -9,7 +9,7 @@ import time
 import numpy as np
 
 from ..adaptive import refine_marked
-from ..io import RawMesh, mesh_of, read_raw, write
+from ..io import RawMesh, mesh_of, read_raw
 from ..memory import check_memory
 from ..mesh import Mesh
 from ..refine import refine
@@ -19,6 +19,7 @@ from . import _common, marks
 
 HELP = "refine every triangle of a mesh file, or only marked ones, with a 7T (or 4T) scheme"
 
+
 def add_args(parser: argparse.ArgumentParser) -> None:
     _common.setup(parser)
     parser.epilog = ("Formats follow the extensions (.msh, .vtk, .vtu, .xdmf, .mesh, .off, "
@@ -26,17 +27,9 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                      "and each tagged edge is split with its tag. Examples: qdrefine refine "
                      "in.msh out.msh --levels 2; qdrefine refine in.msh out.msh --mark-box "
                      "0,0,0.1,0.1 --cycles 5")
-    parser.add_argument("input", metavar="IN", help="mesh file to read (never modified)")
-    parser.add_argument("output", metavar="OUT",
-                        help="mesh file to write (written atomically; .msh is Gmsh 4.1 unless "
-                             "--format-version 2.2)")
-    parser.add_argument("--scheme", default="7t-qd", metavar="NAME",
-                        help=f"one of {', '.join(scheme_names())} (default 7t-qd)")
-    parser.add_argument("--binary", action="store_true",
-                        help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply "
-                             "(much faster for large meshes)")
-    _common.add_format_version(parser)
-    _common.add_compress(parser)
+    _common.add_mesh_in_out(parser, lambda: parser.add_argument(
+        "--scheme", default="7t-qd", metavar="NAME",
+        help=f"one of {', '.join(scheme_names())} (default 7t-qd)"))
     parser.add_argument("--levels", type=_common.non_negative, default=None, metavar="N",
                         help="refine every triangle N times (default 1; 7T schemes multiply "
                              "the triangles by 7 per level); not with a mark")
@@ -61,9 +54,7 @@ def run(args: argparse.Namespace) -> int:
         steps = _check_options(args)
         if args.dask is not None:
             return _on_dask(args)
-        _common.check_output(args.output, (args.input,), binary=args.binary)
-        _common.check_format_version(args.output, args.format_version)
-        _common.check_compress(args.output, args.compress)
+        _common.check_mesh_output(args)
         start = time.perf_counter()
         with _common.Progress(steps + 2, args.quiet) as progress:
             progress.step(f"reading {args.input}")
@@ -76,8 +67,7 @@ def run(args: argparse.Namespace) -> int:
                     raise
                 raise ValueError(f"{args.input}: {exc}") from None
             progress.step(f"writing {args.output}")
-            write(args.output, fine, binary=args.binary or None,
-                  format_version=args.format_version, compress=args.compress)
+            _common.write_mesh(args, fine)
         if not args.quiet:
             print(f"{args.output}: {fine.n_triangles} triangles, {fine.n_points} points "
                   f"({summary}, {time.perf_counter() - start:.2f} s)")
