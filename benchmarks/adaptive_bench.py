@@ -14,7 +14,9 @@ about 0.9 M triangles (made with the Gmsh SDK, ``pip install gmsh``, cached unde
   on transition children coarsen and redo their families. Its uniform level and
   scikit-fem's refinement are of that mesh.
 
-Each time is the best of ``--repeat`` runs (numba on all threads). Usage::
+Then ``qdrefine.coarsen`` of the scattered step's output, everything marked (the input
+comes back) and the half ``x < 0``. Each time is the best of ``--repeat`` runs (numba on
+all threads). Usage::
 
     python benchmarks/adaptive_bench.py [--repeat 3] [--json benchmarks/results/F.json]
 """
@@ -33,7 +35,7 @@ import numpy as np
 
 import qdrefine
 from qdrefine import examples
-from qdrefine.marking import mark_random
+from qdrefine.marking import mark_box, mark_random
 
 CACHE = Path(__file__).parent / ".cache" / "l_shape_900k.npz"
 
@@ -92,6 +94,25 @@ def _estimate(mesh: qdrefine.Mesh, marked: np.ndarray) -> dict:
             "changed_outside_estimate": int((~same & ~reached).sum())}
 
 
+def _coarsening(mesh: qdrefine.Mesh, fine: qdrefine.Mesh, repeat: int) -> dict:
+    """``qdrefine.coarsen`` of the scattered step's output ``fine``: everything marked
+    (back to ``mesh``, checked) and the half ``x < 0``, against a uniform level of
+    ``fine``."""
+    t_base = best(lambda: qdrefine.refine(fine, "7t-qd"), repeat)[0]
+    rows = {}
+    for name, marked in (("everything", np.ones(fine.n_triangles, dtype=bool)),
+                         ("x < 0", mark_box(fine, (-1, -1, 0, 1)))):
+        t, out = best(lambda m=marked: qdrefine.coarsen(fine, m), repeat)
+        if name == "everything" and not (np.array_equal(out.points, mesh.points)
+                                         and out.n_triangles == mesh.n_triangles):
+            raise RuntimeError("coarsening everything did not give the input back")
+        rows[name] = {"triangles": fine.n_triangles, "output_triangles": out.n_triangles,
+                      "seconds": t, "uniform_seconds": t_base, "over_uniform": t / t_base}
+        print(f"coarsening {name}: {fine.n_triangles} -> {out.n_triangles} triangles in "
+              f"{t:.3f} s ({t / t_base:.1f} x a uniform level of that mesh)")
+    return rows
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeat", type=int, default=3)
@@ -140,6 +161,7 @@ def main(argv=None) -> None:
         if "estimate_triangles" in row:
             print(f"  window estimate {row['estimate_triangles']} triangles, the step changes "
                   f"{row['changed_triangles']} ({row['changed_outside_estimate']} outside it)")
+    result["coarsening"] = _coarsening(mesh, second, args.repeat)
     path = args.json or (Path(__file__).parent / "results"
                          / f"adaptive-bench-{result['date']}.json")
     path.write_text(json.dumps(result, indent=1))

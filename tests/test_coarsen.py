@@ -229,3 +229,13 @@ def test_a_moving_front_leaves_nothing_behind():
         assert min_angles(mesh).min() >= bound.ratio * bound.initial - 1e-9
         behind = np.flatnonzero(marking.centroids(mesh)[:, 0] < x - 0.8)
         assert _corner_sets(mesh, behind) <= original
+
+
+def test_an_edge_in_two_groups_is_joined_in_both():
+    """A boundary edge in two physical groups (two tagged copies, as Gmsh writes them):
+    refinement cuts both, coarsening joins both again."""
+    base = examples.gmsh_mesh("l_shape")
+    base = base.replace(edges=np.concatenate([base.edges, base.edges[:5]]),
+                        edge_tags=np.concatenate([base.edge_tags, [7] * 5]))
+    fine = refine(base, marked=np.ones(base.n_triangles, dtype=bool))
+    _assert_same(coarsen(fine, np.ones(fine.n_triangles, dtype=bool)), base)

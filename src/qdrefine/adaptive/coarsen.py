@@ -203,36 +203,40 @@ def _used_by(mesh: Mesh) -> NDArray[np.bool_]:
 
 def _joined(edges: NDArray[np.int64], tags: NDArray, removed: NDArray[np.bool_]
             ) -> tuple[NDArray[np.int64], NDArray]:
-    """Tagged edges joined across the ``removed`` points: ``a -> v``, ``v -> b`` with one
-    tag become ``a -> b`` (as refinement had cut them)."""
+    """Tagged edges joined across the ``removed`` points: consecutive ``a -> v``,
+    ``v -> b`` with one tag become ``a -> b``, as refinement had listed the pieces of a
+    cut edge (an edge in two groups, two tags, is two chains)."""
     if not removed[edges.reshape(-1)].any():
         return edges, tags
     out = np.empty_like(edges)
     keep = np.zeros(edges.shape[0], dtype=bool)
-    nxt = np.full(removed.size, -1, dtype=np.int64)
-    starts = np.flatnonzero(removed[edges[:, 0]])
-    nxt[edges[starts, 0]] = starts
-    bad = _join(edges, np.asarray(tags), removed, nxt, out, keep)
+    tags = np.asarray(tags)
+    bad = _join(edges, tags, removed, out, keep)
     if bad >= 0:
         raise ValueError(f"cannot coarsen: tagged edge {bad} ({edges[bad, 0]}, "
-                         f"{edges[bad, 1]}) ends at a point that coarsening removes, with "
-                         "no tagged edge of the same tag going on from it")
-    return out[keep], np.asarray(tags)[keep]
+                         f"{edges[bad, 1]}) meets a point that coarsening removes, and the "
+                         "next tagged edge does not go on from there with its tag (refinement "
+                         "lists the pieces of a cut edge one after the other)")
+    return out[keep], tags[keep]
 
 
 @njit(cache=True)
-def _join(edges, tags, removed, nxt, out, keep):
-    for i in range(edges.shape[0]):
+def _join(edges, tags, removed, out, keep):
+    """Chains of consecutive tagged edges through removed points into ``out`` (the first
+    piece's row, ``keep``); the first edge that fits no chain, or -1."""
+    n = edges.shape[0]
+    i = 0
+    while i < n:
         if removed[edges[i, 0]]:
-            continue  # joined to the piece before it
-        end = edges[i, 1]
-        steps = 0
+            return i
+        first, end = i, edges[i, 1]
         while removed[end]:
-            j = nxt[end]
-            if j < 0 or tags[j] != tags[i] or steps > edges.shape[0]:
-                return i
-            end = edges[j, 1]
-            steps += 1
-        out[i, 0], out[i, 1] = edges[i, 0], end
-        keep[i] = True
+            if i + 1 < n and edges[i + 1, 0] == end and tags[i + 1] == tags[first]:
+                i += 1
+                end = edges[i, 1]
+            else:
+                return first
+        out[first, 0], out[first, 1] = edges[first, 0], end
+        keep[first] = True
+        i += 1
     return -1
