@@ -239,3 +239,16 @@ def test_an_edge_in_two_groups_is_joined_in_both():
                         edge_tags=np.concatenate([base.edge_tags, [7] * 5]))
     fine = refine(base, marked=np.ones(base.n_triangles, dtype=bool))
     _assert_same(coarsen(fine, np.ones(fine.n_triangles, dtype=bool)), base)
+
+
+def test_tagged_pieces_in_any_order_are_joined():
+    """The pieces of a cut edge listed in any order (a file sorted by tag, a user's
+    permutation) are joined all the same; each joined edge keeps its tag."""
+    base = examples.gmsh_mesh("l_shape")
+    fine = refine(base, marked=np.ones(base.n_triangles, dtype=bool))
+    perm = np.random.default_rng(0).permutation(len(fine.edges))
+    shuffled = fine.replace(edges=fine.edges[perm], edge_tags=fine.edge_tags[perm])
+    back = coarsen(shuffled, np.ones(fine.n_triangles, dtype=bool))
+    got = sorted(zip(map(tuple, back.edges.tolist()), back.edge_tags.tolist(), strict=True))
+    want = sorted(zip(map(tuple, base.edges.tolist()), base.edge_tags.tolist(), strict=True))
+    assert got == want

@@ -203,40 +203,68 @@ def _used_by(mesh: Mesh) -> NDArray[np.bool_]:
 
 def _joined(edges: NDArray[np.int64], tags: NDArray, removed: NDArray[np.bool_]
             ) -> tuple[NDArray[np.int64], NDArray]:
-    """Tagged edges joined across the ``removed`` points: consecutive ``a -> v``,
-    ``v -> b`` with one tag become ``a -> b``, as refinement had listed the pieces of a
-    cut edge (an edge in two groups, two tags, is two chains)."""
+    """Tagged edges joined across the ``removed`` points: ``a -> v`` and ``v -> b`` with
+    one tag become ``a -> b`` in the first piece's row, as refinement had cut them (the
+    next row first, as refinement lists the pieces; any other piece from ``v`` with that
+    tag otherwise; an edge in two groups, two tags, is two chains)."""
     if not removed[edges.reshape(-1)].any():
         return edges, tags
+    tags = np.asarray(tags)
+    order = np.lexsort((np.arange(edges.shape[0]), tags, edges[:, 0]))  # by start, tag
     out = np.empty_like(edges)
     keep = np.zeros(edges.shape[0], dtype=bool)
-    tags = np.asarray(tags)
-    bad = _join(edges, tags, removed, out, keep)
+    bad = _join(edges, tags.astype(np.int64), removed, order, out, keep)
     if bad >= 0:
         raise ValueError(f"cannot coarsen: tagged edge {bad} ({edges[bad, 0]}, "
-                         f"{edges[bad, 1]}) meets a point that coarsening removes, and the "
-                         "next tagged edge does not go on from there with its tag (refinement "
-                         "lists the pieces of a cut edge one after the other)")
+                         f"{edges[bad, 1]}) meets a point that coarsening removes, where no "
+                         "other tagged edge of its tag goes on in its direction")
     return out[keep], tags[keep]
 
 
 @njit(cache=True)
-def _join(edges, tags, removed, out, keep):
-    """Chains of consecutive tagged edges through removed points into ``out`` (the first
-    piece's row, ``keep``); the first edge that fits no chain, or -1."""
+def _next_piece(edges, tags, order, used, v, tag):
+    """An unused edge starting at ``v`` with ``tag`` (``order``: rows by start, tag), or
+    -1."""
+    lo, hi = 0, order.shape[0]
+    while lo < hi:  # the first row with (start, tag) >= (v, tag)
+        mid = (lo + hi) // 2
+        r = order[mid]
+        if edges[r, 0] < v or (edges[r, 0] == v and tags[r] < tag):
+            lo = mid + 1
+        else:
+            hi = mid
+    while lo < order.shape[0]:
+        r = order[lo]
+        if edges[r, 0] != v or tags[r] != tag:
+            break
+        if not used[r]:
+            return r
+        lo += 1
+    return -1
+
+
+@njit(cache=True)
+def _join(edges, tags, removed, order, out, keep):
+    """Chains of tagged edges through removed points into ``out`` (the first piece's row,
+    ``keep``); the first edge that fits no chain, or -1."""
     n = edges.shape[0]
-    i = 0
-    while i < n:
+    used = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
         if removed[edges[i, 0]]:
-            return i
-        first, end = i, edges[i, 1]
+            continue  # a later piece of a chain
+        used[i] = True
+        end, last = edges[i, 1], i
         while removed[end]:
-            if i + 1 < n and edges[i + 1, 0] == end and tags[i + 1] == tags[first]:
-                i += 1
-                end = edges[i, 1]
-            else:
-                return first
-        out[first, 0], out[first, 1] = edges[first, 0], end
-        keep[first] = True
-        i += 1
+            j = last + 1
+            if not (j < n and not used[j] and edges[j, 0] == end and tags[j] == tags[i]):
+                j = _next_piece(edges, tags, order, used, end, tags[i])
+            if j < 0:
+                return i
+            used[j] = True
+            end, last = edges[j, 1], j
+        out[i, 0], out[i, 1] = edges[i, 0], end
+        keep[i] = True
+    for i in range(n):
+        if not used[i]:
+            return i
     return -1
