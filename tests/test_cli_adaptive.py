@@ -207,3 +207,12 @@ def test_coarsen_needs_the_history(tmp_path, run):
     assert result.stderr.count("\n") == 1 and not out.exists()
     result = run("coarsen", SRC, out)
     assert result.returncode == 2 and "--all is required" in result.stderr
+    # another scheme than the mesh was made with: transitions that do not fit, or nothing
+    fine = tmp_path / "fine.msh"
+    assert run("refine", SRC, fine, "--mark-box", "0,0,0.3,0.3", "--quiet").returncode == 0
+    result = run("coarsen", fine, out, "--all", "--scheme", "4t-red")
+    assert result.returncode == 1 and "coarsen with the scheme the mesh was refined with; " \
+        "this was 4t-red)" in result.stderr
+    assert run("refine", SRC, fine, "--mark-box", "0,0,2,1", "--quiet").returncode == 0
+    result = run("coarsen", fine, out, "--all", "--scheme", "4t-red")
+    assert result.returncode == 0 and "no partition of" in result.stderr

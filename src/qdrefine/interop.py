@@ -38,7 +38,8 @@ def to_meshio(mesh: Mesh):
     the tagged edges and a ``triangle`` block, tags as the cell data ``gmsh:physical``
     (untagged triangles: 0), the physical names as ``field_data`` (``name -> [tag, dim]``),
     point data, cell data (the edge rows zero) and the refinement history as the cell data
-    ``qdrefine:transitions``; ``meshio.write`` of it to a ``.msh`` keeps all of them."""
+    ``qdrefine:transitions`` and ``qdrefine:origins``; ``meshio.write`` of it to a ``.msh``
+    keeps all of them."""
     return meshio_mesh(mesh, "gmsh:physical", names=True)
 
 

@@ -129,7 +129,9 @@ class Mesh:
         lies in. Set by :func:`qdrefine.refine` with ``marked`` (the input's triangles
         where the input has none), carried by every refinement, read by
         :func:`qdrefine.coarsen`, which restores only triangles of an origin's uniform
-        refinements. ``None``: no history (the mesh cannot be coarsened).
+        refinements (not checked against the points: they only choose among exact
+        partitions, so a coarsened mesh stays valid either way). ``None``: no history
+        (the mesh cannot be coarsened).
 
     Construction validates everything once with :func:`qdrefine.check.find` and raises
     ``ValueError`` naming the first problem and where (triangle, vertex or edge ids): shapes,

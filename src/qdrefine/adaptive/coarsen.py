@@ -8,8 +8,9 @@ parent: all its members marked) and carry one cell tag are replaced by ``P``. Th
 a refinement step (:mod:`~qdrefine.adaptive.step`), a closure decides which edges keep
 their points: those whose other side is finer (its pieces are working edges), closed
 under the longest-edge rule, with the upgrade rule where the ``NO`` edge has its points
-already, so coarsening creates no point; the transitions are chosen as a refinement
-would choose them. A ``P`` with an edge whose pieces have points too (a neighbour two
+already, so no edge gets new points; the transitions are chosen as a refinement would
+choose them (one that uses its centroid gets it as a new point, at the end, as in a
+refinement step). A ``P`` with an edge whose pieces have points too (a neighbour two
 levels finer) keeps its children (the step's conflict rule). Points no triangle uses any
 more are removed (later points move down), tagged edges are joined again across them.
 """
@@ -55,12 +56,20 @@ def coarsen(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd") -> Me
     -------
     Mesh
         Conforming: the restored triangles and their neighbours get the transitions the
-        remaining points need, chosen as refinement chooses them (no new point is
-        made). A restored triangle with a neighbour two levels finer keeps its children.
-        Points no triangle uses any more are removed (the others keep their order); tags,
-        tagged edges (joined again), cell data (the first child's), point data and the
-        history are kept. ``coarsen(refine(m, marked=k), all)`` is ``m`` again, with the
-        history added. Details: ``docs/adaptive.md``, "Coarsening".
+        remaining points need, chosen as refinement chooses them (no edge gets new
+        points; a transition that uses its centroid gets it as a new point, after the
+        others). A restored triangle with a neighbour two levels finer keeps its
+        children. Points no triangle uses any more are removed (the others keep their
+        order); tags, tagged edges (joined again), cell data (that of the child with the
+        lowest row), point data and the history are kept. ``coarsen(refine(m,
+        marked=k), all)`` is ``m`` again, with the history added. Details:
+        ``docs/adaptive.md``, "Coarsening".
+
+    Raises
+    ------
+    ValueError
+        For a mesh whose transitions do not fit ``scheme`` (refined with another one),
+        and for a tagged edge that cannot be joined again.
     """
     return coarsen_marked(mesh, marked, scheme)[0]
 
@@ -68,15 +77,19 @@ def coarsen(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd") -> Me
 def coarsen_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd"
                    ) -> tuple[Mesh, NDArray[np.int64]]:
     """:func:`coarsen`, also returning ``parents (M',) int64``: an input triangle of each
-    output triangle (a restored triangle maps to its first child, a transition to its
-    family's first member)."""
+    output triangle (a restored triangle maps to its child with the lowest row, a
+    transition to its family's first member)."""
     from .api import as_mask
 
     sch = get_scheme(scheme)
     mask = as_mask(marked, mesh.n_triangles)
     check_needed(local_memory_needed(n_working=mesh.n_triangles, n_output=mesh.n_triangles),
                  f"coarsening {mesh.n_triangles} triangles")
-    work, fam, order = families_of(mesh, sch.stencil.per_edge)
+    try:
+        work, fam, order = families_of(mesh, sch.stencil.per_edge)
+    except ValueError as exc:
+        raise ValueError(f"{exc} (or coarsen with the scheme the mesh was refined with; "
+                         f"this was {sch.name})") from None
     if order is not None:
         mask = mask[order]
     base = np.arange(mesh.n_triangles, dtype=np.int64) if order is None else order
@@ -92,7 +105,7 @@ def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
     """The mesh with the red families ``found`` (rows of :func:`red_families`) restored,
     closed; ``parents`` in ``mesh``'s triangle order."""
     k = sch.stencil.per_edge
-    rows, owner = working_rows(mesh, fam)
+    owner = working_rows(mesh, fam)[1]
     n_plain = int((fam.member < 0).sum())
     children = found[:, 3 + 3 * k:]
     # the mesh triangles that go: plain children, and the members of children's families
@@ -179,7 +192,9 @@ def _without_unused(before: Mesh, out: Mesh, fam: Families, origins: NDArray[np.
     (``fam``, ``origins`` in ``out``'s point ids)."""
     used = np.zeros(out.n_points, dtype=bool)
     used[out.triangles.reshape(-1)] = True
-    used[:before.n_points] |= ~_used_by(before)  # points that were never in a triangle
+    before_used = np.zeros(before.n_points, dtype=bool)
+    before_used[before.triangles.reshape(-1)] = True
+    used[:before.n_points] |= ~before_used  # points that were never in a triangle
     new_id = np.append(np.cumsum(used) - 1, -1)
     dtype = index_dtype(int(used.sum()))
     edges = edge_tags = None
@@ -193,12 +208,6 @@ def _without_unused(before: Mesh, out: Mesh, fam: Families, origins: NDArray[np.
                          out.physical_names)
     fam = Families(fam.member, new_id[fam.parent_triangles], new_id[fam.stencil])
     return with_history(mesh, fam, new_id[origins])
-
-
-def _used_by(mesh: Mesh) -> NDArray[np.bool_]:
-    used = np.zeros(mesh.n_points, dtype=bool)
-    used[mesh.triangles.reshape(-1)] = True
-    return used
 
 
 def _joined(edges: NDArray[np.int64], tags: NDArray, removed: NDArray[np.bool_]

@@ -4,6 +4,7 @@ marked (:func:`qdrefine.coarsen`)."""
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 import numpy as np
@@ -67,4 +68,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"{args.output}: {mesh.n_triangles} triangles, {mesh.n_points} points "
                   f"({n0 - mesh.n_triangles} fewer by {args.scheme} in {cycles} "
                   f"cycle{'s' if cycles != 1 else ''}, {time.perf_counter() - start:.2f} s)")
+            if mesh.n_triangles == n0 and cycles:
+                print(f"qdrefine: note: no partition of {args.input} had all its children "
+                      f"marked (was it refined with {args.scheme}? see --scheme)",
+                      file=sys.stderr)
     return 0
