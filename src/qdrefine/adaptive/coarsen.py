@@ -31,7 +31,7 @@ from .longest_edge import closure
 from .output import emit_step
 from .red_families import red_families, working_rows
 from .rounds import UPGRADE_LAYERS, SplitPlan, Upgrades, conflicts, working_edges
-from .working import start
+from .working import Tree, start
 
 
 def coarsen(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd") -> Mesh:
@@ -161,7 +161,7 @@ def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
     return _without_unused(mesh, out, fam2, mesh.origins[parents]), parents
 
 
-def _coarse_plan(tree, upgrades: Upgrades) -> SplitPlan:
+def _coarse_plan(tree: Tree, upgrades: Upgrades) -> SplitPlan:
     """The split edges of the coarse working mesh: those whose other side is finer (their
     pieces are working edges), closed under the longest-edge rule, with upgrades only
     where the ``NO`` edge has its points already."""
