@@ -11,12 +11,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..arguments import as_count
 from ..memory import check_needed, local_memory_needed
-from ..mesh import Mesh, index_dtype
+from ..mesh import Mesh
 from ..schemes import Scheme, get_scheme
 from ..uniform import check_rounding
 from .families import Families
 from .history import families_of, with_history
-from .output import split_tagged
+from .output import split_tagged, without_points
 from .step import Step
 from .window import windowed_step
 
@@ -181,17 +181,7 @@ def _finished(before: Mesh, res: Step) -> tuple[Mesh, Families, NDArray[np.int64
         drop = drop[~used[drop]]
     keep = np.ones(mesh.n_points, dtype=bool)
     keep[drop] = False
-    new_id = np.append(np.cumsum(keep) - 1, -1)  # -1 stays -1
-    dtype = index_dtype(int(keep.sum()))
-    tris = new_id[mesh.triangles].astype(dtype) if drop.size else mesh.triangles
-    if edges is not None:
-        edges = new_id[edges].astype(dtype)
-    points = mesh.points[keep] if drop.size else mesh.points
-    point_data = {name: v[keep] for name, v in mesh.point_data.items()}
-    out = Mesh._trusted(points, tris, mesh.cell_tags, edges, edge_tags, point_data,
-                        mesh.cell_data, mesh.physical_names)
-    if drop.size:
-        fam = Families(fam.member, new_id[fam.parent_triangles], new_id[fam.stencil])
+    out, fam, new_id = without_points(mesh, fam, keep, edges, edge_tags)
     return out, fam, (new_id if drop.size else None)
 
 

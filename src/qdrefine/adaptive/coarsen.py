@@ -28,9 +28,16 @@ from .edgekeys import edge_keys, lookup, oriented
 from .families import Families
 from .history import families_of, with_history
 from .longest_edge import closure
-from .output import emit_step
+from .output import emit_step, without_points
 from .red_families import red_families, working_rows
-from .rounds import UPGRADE_LAYERS, SplitPlan, Upgrades, conflicts, working_edges
+from .rounds import (
+    UPGRADE_LAYERS,
+    SplitPlan,
+    Upgrades,
+    conflicts,
+    one_sided_pieces,
+    working_edges,
+)
 from .working import Tree, start
 
 
@@ -167,12 +174,8 @@ def _coarse_plan(tree: Tree, upgrades: Upgrades) -> SplitPlan:
     where the ``NO`` edge has its points already."""
     cl = working_edges(tree)
     hanging = np.zeros(cl.edges.shape[0], dtype=bool)
-    cand = np.flatnonzero(cl.pre & (cl.counts == 1))
-    if cand.size:
-        chain = np.column_stack([cl.edges[cand, 0], tree.reg_pts[cl.pos[cand]],
-                                 cl.edges[cand, 1]]).astype(np.int64)
-        sub = edge_keys(chain[:, :-1], chain[:, 1:])
-        hanging[cand[(lookup(cl.keys, sub) >= 0).any(axis=1)]] = True
+    cand, sub = one_sided_pieces(tree, cl)
+    hanging[cand[(lookup(cl.keys, sub) >= 0).any(axis=1)]] = True
     leaves, ce, has_points = cl.leaves, cl.ce, cl.pre
 
     def upgrade(t: NDArray[np.int64], code: NDArray[np.int64]) -> NDArray[np.bool_]:
@@ -195,18 +198,11 @@ def _without_unused(before: Mesh, out: Mesh, fam: Families, origins: NDArray[np.
     before_used = np.zeros(before.n_points, dtype=bool)
     before_used[before.triangles.reshape(-1)] = True
     used[:before.n_points] |= ~before_used  # points that were never in a triangle
-    new_id = np.append(np.cumsum(used) - 1, -1)
-    dtype = index_dtype(int(used.sum()))
     edges = edge_tags = None
     if before.edges is not None:
         edges, edge_tags = _joined(before.edges.astype(np.int64), before.edge_tags,
                                    ~used[:before.n_points])
-        edges = new_id[edges].astype(dtype)
-    point_data = {name: v[used] for name, v in out.point_data.items()}
-    mesh = Mesh._trusted(out.points[used], new_id[out.triangles].astype(dtype),
-                         out.cell_tags, edges, edge_tags, point_data, out.cell_data,
-                         out.physical_names)
-    fam = Families(fam.member, new_id[fam.parent_triangles], new_id[fam.stencil])
+    mesh, fam, new_id = without_points(out, fam, used, edges, edge_tags)
     return with_history(mesh, fam, new_id[origins])
 
 

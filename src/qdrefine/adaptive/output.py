@@ -175,6 +175,28 @@ def _families(rows: NDArray[np.int64], start: NDArray[np.int64], nk: NDArray[np.
     return Families(member, parent.reshape(-1, 3), sten.reshape(-1, old.stencil.shape[1]))
 
 
+def without_points(mesh: Mesh, fam: Families, keep: NDArray[np.bool_],
+                   edges: NDArray | None, edge_tags: NDArray | None
+                   ) -> tuple[Mesh, Families, NDArray[np.int64]]:
+    """``mesh`` and ``fam`` with only the points ``keep (N,)`` (in their order), tagged
+    ``edges`` (``mesh``'s point ids) and ``edge_tags`` set; and the new id of every point
+    ``(N + 1,)``, ``-1`` for removed ones and at the end (so ``-1`` stays ``-1``)."""
+    new_id = np.append(np.cumsum(keep) - 1, -1)
+    dtype = index_dtype(int(keep.sum()))
+    if edges is not None:
+        edges = new_id[edges].astype(dtype)
+    if keep.all():
+        out = Mesh._trusted(mesh.points, mesh.triangles, mesh.cell_tags, edges, edge_tags,
+                            mesh.point_data, mesh.cell_data, mesh.physical_names)
+        return out, fam, new_id
+    point_data = {name: v[keep] for name, v in mesh.point_data.items()}
+    out = Mesh._trusted(mesh.points[keep], new_id[mesh.triangles].astype(dtype),
+                        mesh.cell_tags, edges, edge_tags, point_data, mesh.cell_data,
+                        mesh.physical_names)
+    return out, Families(fam.member, new_id[fam.parent_triangles], new_id[fam.stencil]), \
+        new_id
+
+
 def split_tagged(edges: NDArray, tags: NDArray, keys: NDArray[np.int64],
                   pts: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Cut every tagged edge ``a -> b`` that has points (``keys``, ``pts`` from the lower

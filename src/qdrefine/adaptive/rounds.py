@@ -76,15 +76,23 @@ def plan_splits(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.in
     return cl
 
 
+def one_sided_pieces(tree: Tree, cl: SplitPlan) -> tuple[NDArray[np.int64],
+                                                         NDArray[np.int64]]:
+    """The working edges that have points and one working triangle ``(C,)`` (the coarse
+    side of finer triangles, or the mesh's boundary), and the keys of their pieces
+    ``(C, k + 1)`` between their points."""
+    cand = np.flatnonzero(cl.pre & (cl.counts == 1))
+    chain = np.column_stack([cl.edges[cand, 0], tree.reg_pts[cl.pos[cand]],
+                             cl.edges[cand, 1]]).astype(np.int64)
+    return cand, edge_keys(chain[:, :-1], chain[:, 1:])
+
+
 def conflicts(inp: StepInput, tree: Tree, cl: SplitPlan) -> bool:
     """Expand the coarse side of every pre-split edge one of whose pieces gets points too
     (two levels of points on one working edge)."""
-    cand = np.flatnonzero(cl.pre & (cl.counts == 1))
+    cand, sub = one_sided_pieces(tree, cl)
     if not cand.size:
         return False
-    chain = np.column_stack([cl.edges[cand, 0], tree.reg_pts[cl.pos[cand]],
-                             cl.edges[cand, 1]]).astype(np.int64)
-    sub = edge_keys(chain[:, :-1], chain[:, 1:])
     at = lookup(cl.keys, sub)
     hit = np.where(at >= 0, cl.split[at], False) | (lookup(tree.reg_keys, sub) >= 0)
     bad = np.zeros(cl.edges.shape[0], dtype=bool)
