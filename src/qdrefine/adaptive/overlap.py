@@ -56,18 +56,19 @@ def _interiors_meet(a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[np.bo
     return ~(_separated(a, b) | _separated(b, a))
 
 
-def _cross(t: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Signed twice area ``(...)`` of integer triangles ``t (..., 3, 2)``."""
+def signed_twice_areas(t: NDArray) -> NDArray:
+    """Signed twice area ``(...)`` of triangles ``t (..., 3, 2)`` (integer or float;
+    positive for counter-clockwise)."""
     d = t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :]
     return d[0][..., 0] * d[1][..., 1] - d[0][..., 1] * d[1][..., 0]
 
 
 def _twice_area(t: NDArray[np.int64]) -> NDArray[np.int64]:
-    return np.abs(_cross(t))
+    return np.abs(signed_twice_areas(t))
 
 
 def _ccw(t: NDArray[np.int64]) -> NDArray[np.int64]:
-    return np.where((_cross(t) < 0)[..., None, None], t[..., [0, 2, 1], :], t)
+    return np.where((signed_twice_areas(t) < 0)[..., None, None], t[..., [0, 2, 1], :], t)
 
 
 def _separated(a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[np.bool_]:

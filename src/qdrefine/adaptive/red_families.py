@@ -22,6 +22,7 @@ from ..partition import partition_many
 from ..schemes import Scheme
 from .edgekeys import oriented
 from .families import Families
+from .overlap import signed_twice_areas
 from .working import emit_full
 
 
@@ -97,7 +98,7 @@ def in_hierarchy(points: NDArray[np.float64], origins: NDArray[np.int64],
     target = points[rows]  # (G, 3, 2)
     key = _sorted_corners(target)
     centre = target.mean(axis=1)
-    size = _twice_area(target)
+    size = signed_twice_areas(target)
     node = points[origins]
     todo = np.arange(g)
     for _ in range(MAX_DEPTH):
@@ -105,7 +106,7 @@ def in_hierarchy(points: NDArray[np.float64], origins: NDArray[np.int64],
             break
         same = (_sorted_corners(node) == key[todo]).all(axis=(1, 2))
         found[todo[same]] = True
-        go = ~same & (_twice_area(node) > size[todo] * (1 + 1e-9))
+        go = ~same & (signed_twice_areas(node) > size[todo] * (1 + 1e-9))
         todo, node = todo[go], node[go]
         if not todo.size:
             break
@@ -122,12 +123,6 @@ def _sorted_corners(tri: NDArray[np.float64]) -> NDArray[np.float64]:
     """The corners of each triangle ``(..., 3, 2)`` in lexicographic order."""
     order = np.lexsort((tri[..., 1], tri[..., 0]), axis=-1)
     return np.take_along_axis(tri, order[..., None], axis=-2)
-
-
-def _twice_area(tri: NDArray[np.float64]) -> NDArray[np.float64]:
-    a, b, c = tri[..., 0, :], tri[..., 1, :], tri[..., 2, :]
-    return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) \
-        - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
 
 
 def _contains(tri: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.bool_]:
