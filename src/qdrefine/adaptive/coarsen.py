@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..memory import check_needed, local_memory_needed
 from ..mesh import Mesh, index_dtype
 from ..schemes import Scheme, get_scheme
+from .api import as_mask
 from .edgekeys import edge_keys, lookup, oriented
 from .families import Families
 from .history import families_of, with_history
@@ -86,8 +87,6 @@ def coarsen_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd"
     """:func:`coarsen`, also returning ``parents (M',) int64``: an input triangle of each
     output triangle (a restored triangle maps to its child with the lowest row, a
     transition to its family's first member)."""
-    from .api import as_mask
-
     sch = get_scheme(scheme)
     mask = as_mask(marked, mesh.n_triangles)
     check_needed(local_memory_needed(n_working=mesh.n_triangles, n_output=mesh.n_triangles),
