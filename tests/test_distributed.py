@@ -84,6 +84,19 @@ def test_the_shuffle_path_for_many_chunks(tmp_path, client, monkeypatch):
     assert_identical(mesh, "7t-qd", 2, store.to_mesh(tmp_path / "out.zarr"))
 
 
+@pytest.mark.parametrize("group", [1, 3, 1000])
+def test_any_number_of_edge_partitions(tmp_path, client, monkeypatch, group):
+    # one edge partition per EDGE_GROUP triangle chunks: 35 chunks at level 2 give up to 35, 12
+    # and 1 partitions; every edge's rank and so the output must not depend on it
+    from qdrefine.distributed import level
+
+    monkeypatch.setattr(level, "EDGE_GROUP", group)
+    mesh = jittered_grid(10, seed=13)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=40)
+    refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", "7t-qd", 2, client=client)
+    assert_identical(mesh, "7t-qd", 2, store.to_mesh(tmp_path / "out.zarr"))
+
+
 def test_four_triangle_scheme(tmp_path, client):
     mesh = examples.plate_with_hole(n_around=6, n_rings=1)  # tagged circle, square, regions
     refine_store(store.create(tmp_path / "in.zarr", mesh, chunk_size=4).path,

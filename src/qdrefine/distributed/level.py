@@ -21,10 +21,11 @@ or in Zarr arrays under the run's temporary store, never in local files. The sta
    **range-partitioned** on ``key`` (``set_index`` with divisions at vertex boundaries,
    chosen from a histogram of ``lo`` so that partitions are about the same size), so
    partition ``p`` holds a contiguous range of the sorted keys. It numbers its distinct keys
-   ``0 .. u_p - 1`` in order and computes their new points with the in-memory kernel
-   :func:`qdrefine.kernels.edge_points`; with ``offset_p`` the prefix sums of the ``u_p``
-   (the only numbers gathered on the client), ``offset_p + local id`` is the edge's rank
-   among all keys: exactly the in-memory id, whatever the chunk size or worker count.
+   ``0 .. u_p - 1`` in order and computes their new points by the in-memory formula
+   (``edge_point`` of :func:`qdrefine.kernels.edge_points`); with ``offset_p`` the prefix
+   sums of the ``u_p`` (the only numbers gathered on the client), ``offset_p + local id``
+   is the edge's rank among all keys: exactly the in-memory id, whatever the chunk size or
+   worker count.
 3. **emission**: the ``(chunk, key, p, local id)`` rows are shuffled back to their chunks;
    each triangle chunk looks its half-edges up, runs the in-memory kernel
    :func:`qdrefine.kernels.emit` on its own vertices (renumbered by rank, which keeps the
@@ -48,12 +49,13 @@ from numpy.typing import NDArray
 
 from .. import store as mesh_store
 from ..jit import one_thread
-from ..kernels import edge_points, emit
+from ..kernels import emit
 from ..mesh import index_dtype
 from ..predicates import check_coordinates, orient_signs
 from ..schemes import Scheme, get_scheme
 from ..uniform import split_tagged_edges
 from . import cluster
+from .chunks import child_coordinates, distinct, edge_ends, global_children, new_points
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -70,6 +72,15 @@ _BINS = 4096
 #: Exchanges of at most this many pieces (sources x destinations) go directly from task to
 #: task (NumPy arrays, one small task per piece); larger ones through Dask's P2P shuffle.
 DIRECT_PIECES = 5_000
+
+
+#: One edge partition per this many triangle chunks: each partition holds about as many
+#: edges as this many chunks have, within the memory a worker is checked for
+#: (:func:`~qdrefine.distributed.cluster.min_worker_memory`); the pieces exchanged, one
+#: small task each, are this many times fewer than with a partition per chunk, which on
+#: two workers cut the level-2 edge and emission stages by about a third
+#: (``docs/scale-out.md``).
+EDGE_GROUP = 4
 
 
 def _bounds(n: int, chunk: int) -> list[tuple[int, int]]:
@@ -222,7 +233,7 @@ class Level:
         counts = self._compute(parts)[0]
         bins = len(counts)
         cum = np.cumsum(counts)
-        n_parts = max(1, len(self.tri_ranges))
+        n_parts = -(-len(self.tri_ranges) // EDGE_GROUP) or 1
         cuts = np.searchsorted(cum, cum[-1] * np.arange(1, n_parts) / n_parts, side="right")
         vertices = -(-(cuts.astype(np.int64) * job.n) // bins)  # first vertex of bin `cut`
         vertices = np.unique(vertices[(vertices > 0) & (vertices < job.n)])
@@ -430,7 +441,7 @@ def _answer_points(requests: list[NDArray[np.int64]], job: _Job, a: int, b: int
 def _write_coords_direct(answers: list[NDArray[np.float64]], job: _Job, a: int, b: int
                          ) -> None:
     t = _triangles(job, a, b)
-    _, inverse = np.unique(t, return_inverse=True)
+    _, _, inverse = distinct(t.ravel())
     xy = np.concatenate(answers) if answers else np.empty((0, 2))
     job.coords[a:b] = xy[inverse.reshape(-1)].reshape(-1, 3, 2)
 
@@ -456,25 +467,30 @@ def _half_edges(t: NDArray[np.int64], n: int) -> tuple[NDArray, NDArray]:
     return np.minimum(t, t2) * n + np.maximum(t, t2), t > t2
 
 
+def _distinct_edges(job: _Job, a: int, b: int
+                    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The distinct edges of triangles ``a .. b - 1``: sorted keys ``(u,)`` and the
+    coordinates of the smaller and of the larger vertex ``(u, 4)``."""
+    t = _triangles(job, a, b)
+    xy = job.coords[a:b]
+    if np.isnan(xy).any():  # unwritten chunk: a bug, never a wrong result
+        raise RuntimeError(f"qdrefine internal error: corner coordinates of triangles "
+                           f"{a}..{b - 1} are missing")
+    key, _ = _half_edges(t, job.n)
+    keys, one, _ = distinct(key.ravel(), inverse=False)
+    return keys, edge_ends(t, xy, one)
+
+
 def _edge_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
     """The distinct edges of triangle chunk ``j``: key, ``j``, coordinates of the smaller
     and of the larger vertex."""
     import pandas as pd
 
     j, (a, b) = item
-    t = _triangles(job, a, b)
-    xy = job.coords[a:b]
-    if np.isnan(xy).any():  # unwritten chunk: a bug, never a wrong result
-        raise RuntimeError(f"qdrefine internal error: corner coordinates of triangles "
-                           f"{a}..{b - 1} are missing")
-    key, swap = _half_edges(t, job.n)
-    xy2 = np.roll(xy, -1, axis=1)
-    lo_xy = np.where(swap[..., None], xy2, xy).reshape(-1, 2)
-    hi_xy = np.where(swap[..., None], xy, xy2).reshape(-1, 2)
-    keys, first = np.unique(key.ravel(), return_index=True)
+    keys, ends = _distinct_edges(job, a, b)
     return pd.DataFrame({"key": keys, "j": np.full(len(keys), j, dtype=np.int64),
-                         "xlo": lo_xy[first, 0], "ylo": lo_xy[first, 1],
-                         "xhi": hi_xy[first, 0], "yhi": hi_xy[first, 1]})
+                         "xlo": ends[:, 0], "ylo": ends[:, 1], "xhi": ends[:, 2],
+                         "yhi": ends[:, 3]})
 
 
 def _tagged_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
@@ -490,11 +506,9 @@ def _tagged_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
 
 
 def _edge_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list[tuple]:
-    """:func:`_edge_frame` as arrays, cut at the partitions' keys: piece ``p`` is
-    ``(keys, ends (u, 4))`` of partition ``p``, keys sorted."""
-    frame = _edge_frame((0, rows), job)
-    keys = frame["key"].to_numpy(np.int64)
-    ends = frame[["xlo", "ylo", "xhi", "yhi"]].to_numpy(np.float64)
+    """:func:`_distinct_edges` of triangles ``rows``, cut at the partitions' keys: piece
+    ``p`` is ``(keys, ends (u, 4))`` of partition ``p``, keys sorted."""
+    keys, ends = _distinct_edges(job, *rows)
     at = np.searchsorted(keys, cuts)
     return list(zip(np.split(keys, at), np.split(ends, at), strict=True))
 
@@ -515,14 +529,14 @@ def _number_pieces(pieces: list[tuple], job: _Job
     tri = [pc for pc in pieces if pc[1] is not None]
     keys = np.concatenate([k for k, _ in tri]) if tri else np.empty(0, dtype=np.int64)
     ends = np.concatenate([e for _, e in tri]) if tri else np.empty((0, 4))
-    unique, first = np.unique(keys, return_index=True)
+    unique, first, _ = distinct(keys, inverse=False)
     lids = []
     for k, _ in pieces:
         lid = np.searchsorted(unique, k)
         found = lid < len(unique)
         found[found] = unique[lid[found]] == k[found]
         lids.append(np.where(found, lid, -1).astype(np.int64))
-    return len(unique), _new_points(ends[first], job.k), lids
+    return len(unique), new_points(ends[first], job.k), lids
 
 
 def _lids_for(result: tuple, j: int) -> NDArray[np.int64]:
@@ -539,7 +553,7 @@ def _number_edges(part: pd.DataFrame, job: _Job, p: int
     key = part.index.to_numpy(dtype=np.int64)
     j = part["j"].to_numpy(dtype=np.int64)
     tri = j < job.n_chunks
-    keys, first = np.unique(key[tri], return_index=True)
+    keys, first, _ = distinct(key[tri], inverse=False)
     lid = np.searchsorted(keys, key)
     found = lid < len(keys)
     found[found] = keys[lid[found]] == key[found]
@@ -547,7 +561,7 @@ def _number_edges(part: pd.DataFrame, job: _Job, p: int
     ends = part[["xlo", "ylo", "xhi", "yhi"]].to_numpy(dtype=np.float64)[tri][first]
     back = pd.DataFrame({"j": j, "key": key, "p": np.full(len(key), p, dtype=np.int64),
                          "lid": lid.astype(np.int64)})
-    return len(keys), _new_points(ends, job.k), back
+    return len(keys), new_points(ends, job.k), back
 
 
 def _count(result: tuple) -> int:
@@ -562,27 +576,15 @@ def _back_rows(result: tuple) -> pd.DataFrame:
     return result[2]
 
 
-def _new_points(ends: NDArray[np.float64], k: int) -> NDArray[np.float64]:
-    """The ``k`` new points of each edge ``(xlo, ylo, xhi, yhi)`` by the in-memory kernel:
-    ``(E * k, 2)``, each edge's points listed from its smaller vertex."""
-    u = len(ends)
-    local = np.ascontiguousarray(np.concatenate([ends[:, :2], ends[:, 2:]]))
-    edges = np.stack([np.arange(u), np.arange(u, 2 * u)], axis=1).astype(index_dtype(2 * u))
-    out = np.empty((2 * u + k * u, 2), dtype=np.float64)
-    with one_thread():
-        edge_points(local, edges, k, out)
-    return out[2 * u:]
-
-
 def _global_ids(part: pd.DataFrame | list, offsets: NDArray[np.int64],
                 keys: NDArray[np.int64]) -> NDArray[np.int64]:
     """The in-memory edge id of every key of ``keys`` (any shape), from the rows sent back
     (a frame after a shuffle, or the partitions' local ids of this chunk's sorted distinct
     keys, partition by partition)."""
     if isinstance(part, list):
-        distinct, inverse = np.unique(keys, return_inverse=True)
+        values, _, inverse = distinct(keys.ravel())
         lid = np.concatenate(part) if part else np.empty(0, dtype=np.int64)
-        if len(lid) != len(distinct):
+        if len(lid) != len(values):
             raise RuntimeError("qdrefine internal error: edge ids did not come back")
         p = np.repeat(np.arange(len(part)), [len(x) for x in part])
         gid = np.where(lid < 0, -1, offsets[p] + lid)
@@ -608,7 +610,7 @@ def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: in
     key, _ = _half_edges(t, job.n)
     gid = _global_ids(part, offsets, key)
     # renumber the chunk's vertices by rank: the kernel compares indices (a < b) only
-    vertices, first, local = np.unique(t, return_index=True, return_inverse=True)
+    vertices, first, local = distinct(t.ravel())
     local = local.reshape(-1, 3).astype(np.int32)
     points = np.ascontiguousarray(xy[first])
     _check_orientation(points, local, t, a, job.path)
@@ -618,31 +620,13 @@ def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: in
         suspect = emit(points, local, gid, k, sch.forms, sch.lut, sch.tables, children)
     if suspect.any():
         _check_rounding(job, a, t, points, local, gid, children, suspect)
-    old = children < u
-    glob = np.where(old, vertices[np.where(old, children, 0)], job.n + (children - u))
-    job.out["triangles"][a * tc:b * tc] = glob.astype(job.out["triangles"].dtype)
+    glob = np.empty(children.shape, dtype=job.out["triangles"].dtype)
+    global_children(children, vertices, job.n, glob)
+    job.out["triangles"][a * tc:b * tc] = glob
     if "cell_tags" in job.out:
         job.out["cell_tags"][a * tc:b * tc] = np.repeat(job.src["cell_tags"][a:b], tc)
     if job.next_coords is not None:
-        job.next_coords[a * tc:b * tc] = _child_coordinates(job, points, local, gid, children)
-
-
-def _child_coordinates(job: _Job, points: NDArray, local: NDArray, gid: NDArray,
-                       children: NDArray) -> NDArray[np.float64]:
-    """The children's corner coordinates ``(C T, 3, 2)``. The new points are computed here
-    again, from the same endpoints by the same kernel as in the edge partitions, so they are
-    the stored points bit for bit."""
-    k, u = job.k, len(points)
-    nxt = np.roll(local, -1, axis=1)
-    lo, hi = np.minimum(local, nxt).ravel(), np.maximum(local, nxt).ravel()
-    edge_ids, first = np.unique(gid.ravel(), return_index=True)
-    ends = np.concatenate([points[lo[first]], points[hi[first]]], axis=1)
-    new = _new_points(ends, k).reshape(-1, k, 2)
-    block = children.astype(np.int64)
-    old = block < u
-    rel = np.where(old, 0, block - u)
-    pos = np.minimum(np.searchsorted(edge_ids, rel // k), len(new) - 1)
-    return np.where(old[..., None], points[np.where(old, block, 0)], new[pos, rel % k])
+        job.next_coords[a * tc:b * tc] = child_coordinates(points, local, gid, children, k)
 
 
 def _check_rounding(job: _Job, a: int, t: NDArray, points: NDArray, local: NDArray,
@@ -652,7 +636,8 @@ def _check_rounding(job: _Job, a: int, t: NDArray, points: NDArray, local: NDArr
     their new points rounded to float64; ``ValueError`` naming the first parent otherwise."""
     tc = job.children
     rows = np.flatnonzero(np.repeat(suspect, tc))
-    xy = _child_coordinates(job, points, local, gid, children[rows]).reshape(-1, 2)
+    xy = child_coordinates(points, local[suspect], gid[suspect], children[rows],
+                           job.k).reshape(-1, 2)
     signs = orient_signs(np.ascontiguousarray(xy), np.arange(len(xy)).reshape(-1, 3))
     bad = np.flatnonzero(signs <= 0)
     if bad.size:
