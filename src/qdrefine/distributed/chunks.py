@@ -40,6 +40,74 @@ def distinct(values: NDArray, inverse: bool = True
     return ordered[head], order[head], back
 
 
+def merge_sorted(keys: NDArray[np.int64], starts: NDArray[np.int64]
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Merge sorted runs of distinct keys: ``keys[starts[i]:starts[i + 1]]`` is run ``i``.
+
+    Returns ``first (u,)``, the row of one occurrence of each distinct key in increasing key
+    order (``keys[first]`` are the sorted distinct keys), and ``inverse (n,)``, the index in
+    that order of every row's key. A heap of the runs' heads: ``O(n log r)`` for ``r`` runs,
+    every run read in order (no random gather, unlike an argsort of the concatenation).
+    """
+    first = np.empty(keys.shape[0], dtype=np.int64)
+    inverse = np.empty(keys.shape[0], dtype=np.int64)
+    u = _merge_sorted(keys, np.asarray(starts, dtype=np.int64), first, inverse)
+    return first[:u].copy(), inverse
+
+
+@njit(cache=True)
+def _merge_sorted(keys, starts, first, inverse):
+    runs = starts.shape[0] - 1
+    heap = np.empty(runs, dtype=np.int64)  # runs, by the key at their position
+    pos = starts[:-1].copy()
+    size = 0
+    for r in range(runs):
+        if pos[r] < starts[r + 1]:
+            heap[size] = r
+            size += 1
+            _sift_up(heap, size - 1, keys, pos)
+    u = -1
+    last = 0
+    while size:
+        r = heap[0]
+        row = pos[r]
+        if u < 0 or keys[row] != last:
+            u += 1
+            first[u] = row
+            last = keys[row]
+        inverse[row] = u
+        pos[r] += 1
+        if pos[r] == starts[r + 1]:
+            size -= 1
+            heap[0] = heap[size]
+        _sift_down(heap, size, keys, pos)
+    return u + 1
+
+
+@njit(inline="always", cache=True)
+def _sift_up(heap, i, keys, pos):
+    while i:
+        parent = (i - 1) // 2
+        if keys[pos[heap[parent]]] <= keys[pos[heap[i]]]:
+            break
+        heap[parent], heap[i] = heap[i], heap[parent]
+        i = parent
+
+
+@njit(inline="always", cache=True)
+def _sift_down(heap, size, keys, pos):
+    i = 0
+    while True:
+        small = i
+        for child in (2 * i + 1, 2 * i + 2):
+            if child < size and keys[pos[heap[child]]] < keys[pos[heap[small]]]:
+                small = child
+        if small == i:
+            return
+        heap[small], heap[i] = heap[i], heap[small]
+        i = small
+
+
 def edge_ends(triangles: NDArray[np.integer], corners: NDArray[np.float64],
               half_edges: NDArray[np.integer]) -> NDArray[np.float64]:
     """Coordinates ``(E, 4)`` (smaller vertex first, then larger) of the ends of the
@@ -64,23 +132,28 @@ def _edge_ends(triangles, corners, half_edges, out):
         out[g, 3] = corners[t, j, 1]
 
 
-def new_points(ends: NDArray[np.float64], per_edge: int) -> NDArray[np.float64]:
+def new_points(ends: NDArray[np.float64], per_edge: int,
+               rows: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
     """The ``per_edge`` new points of each edge ``(x_lo, y_lo, x_hi, y_hi)`` of ``ends
-    (E, 4)`` (its smaller vertex's coordinates first): ``(E * per_edge, 2)``, each edge's
-    points listed from its smaller vertex, by the formula of
-    :func:`qdrefine.kernels.edge_points` (``edge_point``), so bit for bit the points that
+    (E, 4)`` (its smaller vertex's coordinates first), or of the edges ``ends[rows]``:
+    ``(E * per_edge, 2)``, each edge's points listed from its smaller vertex, by the formula
+    of :func:`qdrefine.kernels.edge_points` (``edge_point``), so bit for bit the points that
     refinement in memory makes."""
-    out = np.empty((ends.shape[0] * per_edge, 2), dtype=np.float64)
-    _new_points(np.ascontiguousarray(ends, dtype=np.float64), per_edge, out)
+    ends = np.ascontiguousarray(ends, dtype=np.float64)
+    if rows is None:
+        rows = np.arange(ends.shape[0], dtype=np.int64)
+    out = np.empty((rows.shape[0] * per_edge, 2), dtype=np.float64)
+    _new_points(ends, rows, per_edge, out)
     return out
 
 
 @njit(cache=True)
-def _new_points(ends, per_edge, out):
-    for g in range(ends.shape[0]):
+def _new_points(ends, rows, per_edge, out):
+    for g in range(rows.shape[0]):
+        r = rows[g]
         for j in range(per_edge):
             for x in range(2):
-                out[g * per_edge + j, x] = edge_point(ends[g, x], ends[g, 2 + x], j, per_edge)
+                out[g * per_edge + j, x] = edge_point(ends[r, x], ends[r, 2 + x], j, per_edge)
 
 
 def global_children(children: NDArray[np.integer], vertices: NDArray[np.int64], n: int,

@@ -55,7 +55,14 @@ from ..predicates import check_coordinates, orient_signs
 from ..schemes import Scheme, get_scheme
 from ..uniform import split_tagged_edges
 from . import cluster
-from .chunks import child_coordinates, distinct, edge_ends, global_children, new_points
+from .chunks import (
+    child_coordinates,
+    distinct,
+    edge_ends,
+    global_children,
+    merge_sorted,
+    new_points,
+)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -526,17 +533,20 @@ def _number_pieces(pieces: list[tuple], job: _Job
     """Edge partition from the pieces of every triangle chunk, then every tagged edge
     chunk: its number of distinct edges, their new points and, for every source, the
     local ids of the keys it sent, in its order (-1: a tagged edge of no triangle)."""
-    tri = [pc for pc in pieces if pc[1] is not None]
+    tri = [pc for pc in pieces if pc[1] is not None]  # the triangle chunks' come first
     keys = np.concatenate([k for k, _ in tri]) if tri else np.empty(0, dtype=np.int64)
     ends = np.concatenate([e for _, e in tri]) if tri else np.empty((0, 4))
-    unique, first, _ = distinct(keys, inverse=False)
-    lids = []
-    for k, _ in pieces:
+    sizes = np.array([len(k) for k, _ in tri], dtype=np.int64)
+    first, inverse = merge_sorted(keys, np.concatenate([[0], np.cumsum(sizes)]))
+    unique = keys[first]
+    ids = index_dtype(len(unique))
+    lids = np.split(inverse.astype(ids), np.cumsum(sizes)[:-1]) if tri else []
+    for k, _ in pieces[len(tri):]:  # tagged edges: -1 where no triangle has the edge
         lid = np.searchsorted(unique, k)
         found = lid < len(unique)
         found[found] = unique[lid[found]] == k[found]
-        lids.append(np.where(found, lid, -1).astype(np.int64))
-    return len(unique), new_points(ends[first], job.k), lids
+        lids.append(np.where(found, lid, -1).astype(ids))
+    return len(unique), new_points(ends, job.k, first), lids
 
 
 def _lids_for(result: tuple, j: int) -> NDArray[np.int64]:
