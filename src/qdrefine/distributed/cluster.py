@@ -193,7 +193,7 @@ class Reporter:
 
 
 #: Names of qdrefine's writing tasks (waited for after a failure).
-WRITERS = ("_write_coords", "_emit_chunk", "_split_chunk", "store-map")
+WRITERS = ("_write_coords", "_emit_chunk", "_split_chunk", "_write_points", "store-map")
 
 
 def compute(client: Client, tasks: list, *, pause_timeout: float = PAUSE_TIMEOUT,

@@ -289,7 +289,6 @@ class Level:
 
     def _emit(self, numbered: list, counts: NDArray[np.int64]) -> None:
         """Stage 3: triangles, cell tags, tagged edges and points of the output store."""
-        import dask.array as da
         from dask import delayed
 
         job = self.job
@@ -311,16 +310,29 @@ class Level:
         split = delayed(_split_chunk, pure=False)
         tasks += [split(part, job, offsets, a, b) for part, (a, b)
                   in zip(parts[job.n_chunks:], self.edge_ranges, strict=True)]
-        new = [da.from_delayed(delayed(_new_points_of)(f), shape=(int(c) * job.k, 2),
-                               dtype=np.float64) for f, c in zip(numbered, counts, strict=True)
-               if c]
-        points = da.concatenate([da.from_zarr(job.src["points"])] + new)
-        points = points.rechunk((job.out["points"].chunks[0], 2))
-        columns = mesh_store.node_coordinates(points)
-        tasks.append(da.store([points, *columns.values()],
-                              [job.out[name] for name in ("points", *columns)], lock=False,
-                              compute=False))
-        self._compute(tasks)
+        self._compute(tasks + self._points_tasks(numbered, counts, offsets))
+
+    def _points_tasks(self, numbered: list, counts: NDArray[np.int64],
+                      offsets: NDArray[np.int64]) -> list:
+        """One task per chunk of the output's points (and ``node_x``, ``node_y``): the old
+        points' rows it covers, read from the source, then the slices of the edge
+        partitions' new points that fall into it (partition ``p``'s are rows
+        ``n + k offset_p ..``)."""
+        from dask import delayed
+
+        job = self.job
+        rows_of = delayed(_new_points_rows, pure=False)
+        write = delayed(_write_points, pure=False)
+        starts = job.n + job.k * offsets
+        stops = starts + job.k * counts
+        tasks = []
+        for a, b in _bounds(job.n_out, int(job.out["points"].chunks[0])):
+            parts: list = [(a, min(b, job.n))] if a < job.n else []
+            for p in np.flatnonzero((starts < b) & (stops > a)):
+                lo, hi = max(a, starts[p]) - starts[p], min(b, stops[p]) - starts[p]
+                parts.append(rows_of(numbered[p], int(lo), int(hi)))
+            tasks.append(write(parts, job, a, b))
+        return tasks
 
     def _back_shuffle(self, numbered: list, n_targets: int) -> list:
         import dask.dataframe as dd
@@ -578,8 +590,22 @@ def _count(result: tuple) -> int:
     return int(result[0])
 
 
-def _new_points_of(result: tuple) -> NDArray[np.float64]:
-    return result[1]
+def _new_points_rows(result: tuple, lo: int, hi: int) -> NDArray[np.float64]:
+    """Rows ``lo .. hi - 1`` of an edge partition's new points."""
+    return result[1][lo:hi]
+
+
+def _write_points(parts: list, job: _Job, a: int, b: int) -> None:
+    """Rows ``a .. b - 1`` of the output's ``points``, ``node_x`` and ``node_y``: ``parts``
+    are, in order, a range ``(start, stop)`` of the source's points and arrays of new
+    points."""
+    xy = np.concatenate([job.src["points"][p[0]:p[1]] if isinstance(p, tuple) else p
+                         for p in parts])
+    if len(xy) != b - a:
+        raise RuntimeError(f"qdrefine internal error: {len(xy)} points for rows {a}..{b - 1}")
+    job.out["points"][a:b] = xy
+    for i, name in enumerate(mesh_store.NODE_COORDINATES):
+        job.out[name][a:b] = xy[:, i]
 
 
 def _back_rows(result: tuple) -> pd.DataFrame:
