@@ -139,7 +139,12 @@ def _coords_array(url: str, m: int, chunk: int, create: bool):
 
 
 class _Direct(list):
-    """The edge partitions' futures when their results go back directly (not shuffled)."""
+    """The edge partitions' futures when their results go back directly (not shuffled);
+    ``inverses``: for every triangle chunk, the future of the index of each of its
+    half-edges among its sorted distinct edges (:func:`_edge_pieces`), kept for its
+    emission."""
+
+    inverses: list = []
 
 
 class Level:
@@ -185,7 +190,7 @@ class Level:
             try:
                 self._emit(numbered, counts)
             finally:  # the partitions' results are no longer needed (nor recomputed)
-                for future in numbered:
+                for future in [*numbered, *getattr(numbered, "inverses", [])]:
                     future.release()
 
     def _compute(self, tasks: list, keep: bool = False) -> list:
@@ -277,15 +282,18 @@ class Level:
         job = self.job
         cuts = np.array(divisions[1:-1], dtype=np.int64)
         n_parts = len(divisions) - 1
-        pieces = delayed(_edge_pieces, pure=False, nout=n_parts)
+        pieces = delayed(_edge_pieces, pure=False, nout=n_parts + 1)
         sources = [pieces(r, job, cuts) for r in self.tri_ranges]
+        inverses = [src[n_parts] for src in sources]
         tagged = delayed(_tagged_pieces, pure=False, nout=n_parts)
         sources += [tagged(r, job, cuts) for r in self.edge_ranges]
         number = delayed(_number_pieces, pure=False)
         futures = self._compute([number([src[p] for src in sources], job)
-                                 for p in range(n_parts)], keep=True)
-        counts = self.client.gather(self.client.map(_count, futures, pure=False))
-        return _Direct(futures), np.asarray(counts, dtype=np.int64)
+                                 for p in range(n_parts)] + inverses, keep=True)
+        numbered = _Direct(futures[:n_parts])
+        numbered.inverses = futures[n_parts:]
+        counts = self.client.gather(self.client.map(_count, numbered, pure=False))
+        return numbered, np.asarray(counts, dtype=np.int64)
 
     def _emit(self, numbered: list, counts: NDArray[np.int64]) -> None:
         """Stage 3: triangles, cell tags, tagged edges and points of the output store."""
@@ -305,8 +313,9 @@ class Level:
         else:
             parts = self._back_shuffle(numbered, n_targets)
         emit_chunk = delayed(_emit_chunk, pure=False)
-        tasks = [emit_chunk(part, job, offsets, a, b) for part, (a, b)
-                 in zip(parts, self.tri_ranges, strict=False)]
+        inverses = getattr(numbered, "inverses", [None] * job.n_chunks)
+        tasks = [emit_chunk(part, job, offsets, a, b, inverse) for part, (a, b), inverse
+                 in zip(parts, self.tri_ranges, inverses, strict=False)]
         split = delayed(_split_chunk, pure=False)
         tasks += [split(part, job, offsets, a, b) for part, (a, b)
                   in zip(parts[job.n_chunks:], self.edge_ranges, strict=True)]
@@ -486,18 +495,22 @@ def _half_edges(t: NDArray[np.int64], n: int) -> tuple[NDArray, NDArray]:
     return np.minimum(t, t2) * n + np.maximum(t, t2), t > t2
 
 
-def _distinct_edges(job: _Job, a: int, b: int
-                    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """The distinct edges of triangles ``a .. b - 1``: sorted keys ``(u,)`` and the
-    coordinates of the smaller and of the larger vertex ``(u, 4)``."""
+def _distinct_edges(job: _Job, a: int, b: int, inverse: bool = False
+                    ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray | None]:
+    """The distinct edges of triangles ``a .. b - 1``: sorted keys ``(u,)``, the
+    coordinates of the smaller and of the larger vertex ``(u, 4)`` and, if asked for, the
+    index of each half-edge ``(v_i, v_{i+1})`` among the keys ``(3 (b - a),)`` (int32
+    while it fits)."""
     t = _triangles(job, a, b)
     xy = job.coords[a:b]
     if np.isnan(xy).any():  # unwritten chunk: a bug, never a wrong result
         raise RuntimeError(f"qdrefine internal error: corner coordinates of triangles "
                            f"{a}..{b - 1} are missing")
     key, _ = _half_edges(t, job.n)
-    keys, one, _ = distinct(key.ravel(), inverse=False)
-    return keys, edge_ends(t, xy, one)
+    keys, one, back = distinct(key.ravel(), inverse=inverse)
+    if back is not None:
+        back = back.astype(index_dtype(len(keys)))
+    return keys, edge_ends(t, xy, one), back
 
 
 def _edge_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
@@ -506,7 +519,7 @@ def _edge_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
     import pandas as pd
 
     j, (a, b) = item
-    keys, ends = _distinct_edges(job, a, b)
+    keys, ends, _ = _distinct_edges(job, a, b)
     return pd.DataFrame({"key": keys, "j": np.full(len(keys), j, dtype=np.int64),
                          "xlo": ends[:, 0], "ylo": ends[:, 1], "xhi": ends[:, 2],
                          "yhi": ends[:, 3]})
@@ -524,12 +537,13 @@ def _tagged_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
                          "xlo": nan, "ylo": nan, "xhi": nan, "yhi": nan})
 
 
-def _edge_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list[tuple]:
+def _edge_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list:
     """:func:`_distinct_edges` of triangles ``rows``, cut at the partitions' keys: piece
-    ``p`` is ``(keys, ends (u, 4))`` of partition ``p``, keys sorted."""
-    keys, ends = _distinct_edges(job, *rows)
+    ``p`` is ``(keys, ends (u, 4))`` of partition ``p``, keys sorted; then the index of
+    every half-edge among the keys (for the chunk's emission)."""
+    keys, ends, inverse = _distinct_edges(job, *rows, inverse=True)
     at = np.searchsorted(keys, cuts)
-    return list(zip(np.split(keys, at), np.split(ends, at), strict=True))
+    return [*zip(np.split(keys, at), np.split(ends, at), strict=True), inverse]
 
 
 def _tagged_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list[tuple]:
@@ -613,14 +627,19 @@ def _back_rows(result: tuple) -> pd.DataFrame:
 
 
 def _global_ids(part: pd.DataFrame | list, offsets: NDArray[np.int64],
-                keys: NDArray[np.int64]) -> NDArray[np.int64]:
+                keys: NDArray[np.int64], inverse: NDArray | None = None
+                ) -> NDArray[np.int64]:
     """The in-memory edge id of every key of ``keys`` (any shape), from the rows sent back
     (a frame after a shuffle, or the partitions' local ids of this chunk's sorted distinct
-    keys, partition by partition)."""
+    keys, partition by partition, with ``inverse``, the index of each key among them, if
+    known)."""
     if isinstance(part, list):
-        values, _, inverse = distinct(keys.ravel())
         lid = np.concatenate(part) if part else np.empty(0, dtype=np.int64)
-        if len(lid) != len(values):
+        if inverse is None:
+            values, _, inverse = distinct(keys.ravel())
+            if len(lid) != len(values):
+                raise RuntimeError("qdrefine internal error: edge ids did not come back")
+        elif inverse.size != keys.size or (inverse.size and inverse.max() >= len(lid)):
             raise RuntimeError("qdrefine internal error: edge ids did not come back")
         p = np.repeat(np.arange(len(part)), [len(x) for x in part])
         gid = np.where(lid < 0, -1, offsets[p] + lid)
@@ -636,15 +655,16 @@ def _global_ids(part: pd.DataFrame | list, offsets: NDArray[np.int64],
 
 
 def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: int,
-                b: int) -> None:
+                b: int, inverse: NDArray | None = None) -> None:
     """Children of triangles ``a .. b - 1`` (rows ``a T .. b T - 1``), their cell tags and,
-    with a next level, their corner coordinates."""
+    with a next level, their corner coordinates (``inverse``: as for
+    :func:`_global_ids`)."""
     sch = get_scheme(job.scheme)
     k, tc = job.k, job.children
     t = _triangles(job, a, b)
     xy = job.coords[a:b].reshape(-1, 2)
     key, _ = _half_edges(t, job.n)
-    gid = _global_ids(part, offsets, key)
+    gid = _global_ids(part, offsets, key, inverse)
     # renumber the chunk's vertices by rank: the kernel compares indices (a < b) only
     vertices, first, local = distinct(t.ravel())
     local = local.reshape(-1, 3).astype(np.int32)
