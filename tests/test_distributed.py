@@ -514,3 +514,11 @@ def test_stores_on_s3(s3_bucket, client):
     assert sorted(fs.ls(root, detail=False)) == ["qd-bucket/bad.zarr", "qd-bucket/in.zarr",
                                                  "qd-bucket/out.zarr"]
     assert_identical(mesh, "7t-qd", 2, store.to_mesh(f"{s3_bucket}/out.zarr"))
+
+
+@pytest.mark.parametrize("profile", [False, True])
+def test_the_local_workers_profiler_is_off_unless_asked_for(profile):
+    with local_client(n_workers=1, processes=False, dashboard_address=":0",
+                      profile=profile) as c:
+        on = c.run(lambda dask_worker: "profile" in dask_worker.periodic_callbacks)
+    assert list(on.values()) == [profile]

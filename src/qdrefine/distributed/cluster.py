@@ -48,13 +48,16 @@ def min_worker_memory(chunk_size: int) -> int:
 
 
 def local_client(n_workers: int | None = None, memory_limit: str | float = "auto",
-                 processes: bool = True, **cluster_kwargs: Any) -> Client:
+                 processes: bool = True, profile: bool = False, **cluster_kwargs: Any) -> Client:
     """A client of a new local cluster: ``n_workers`` (default: one per core) workers of
     one thread each, sharing the machine's memory (``"auto"``).
 
     Closing the client also closes the cluster. The dashboard is served when bokeh is
-    installed (``client.dashboard_link``).
+    installed (``client.dashboard_link``). The workers' statistical profiler (the
+    dashboard's "Profile" page) runs only with ``profile=True``: sampling every 10 ms, it
+    took about 8% of the workers' CPU time of a refinement (docs/scale-out.md).
     """
+    import dask
     from dask.system import CPU_COUNT
     from distributed import Client
 
@@ -62,9 +65,11 @@ def local_client(n_workers: int | None = None, memory_limit: str | float = "auto
         # no dashboard: its HTTP server (health checks) takes any free port, so two runs side
         # by side do not fight over 8787
         cluster_kwargs.setdefault("dashboard_address", ":0")
-    # a client given cluster arguments starts its own LocalCluster and closes it on close()
-    return Client(n_workers=n_workers or CPU_COUNT, threads_per_worker=1, processes=processes,
-                  memory_limit=memory_limit, **cluster_kwargs)
+    # a client given cluster arguments starts its own LocalCluster and closes it on close();
+    # the workers (and their nannies) read the configuration when they are made
+    with dask.config.set({"distributed.worker.profile.enabled": profile}):
+        return Client(n_workers=n_workers or CPU_COUNT, threads_per_worker=1,
+                      processes=processes, memory_limit=memory_limit, **cluster_kwargs)
 
 
 def _has_dashboard() -> bool:
