@@ -55,7 +55,7 @@ def local_client(n_workers: int | None = None, memory_limit: str | float = "auto
     Closing the client also closes the cluster. The dashboard is served when bokeh is
     installed (``client.dashboard_link``). The workers' statistical profiler (the
     dashboard's "Profile" page) runs only with ``profile=True``: sampling every 10 ms, it
-    took about 8% of the workers' CPU time of a refinement (docs/scale-out.md).
+    took about 10% of the workers' CPU time of a refinement (docs/scale-out.md).
     """
     import dask
     from dask.system import CPU_COUNT
