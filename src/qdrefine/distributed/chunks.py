@@ -30,14 +30,24 @@ def distinct(values: NDArray, inverse: bool = True
     """
     order = np.argsort(values, kind="quicksort")
     ordered = values[order]
-    head = np.empty(ordered.shape[0], dtype=bool)
-    head[:1] = True
-    np.not_equal(ordered[1:], ordered[:-1], out=head[1:])
-    back = None
-    if inverse:
-        back = np.empty(ordered.shape[0], dtype=np.intp)
-        back[order] = np.cumsum(head) - 1
-    return ordered[head], order[head], back
+    keys = np.empty(ordered.shape[0], dtype=values.dtype)
+    one = np.empty(ordered.shape[0], dtype=np.intp)
+    back = np.empty(ordered.shape[0] if inverse else 0, dtype=np.intp)
+    u = _distinct_sorted(ordered, order, keys, one, back, inverse)
+    return keys[:u].copy(), one[:u].copy(), back if inverse else None
+
+
+@njit(cache=True)
+def _distinct_sorted(ordered, order, keys, one, back, inverse):
+    u = -1
+    for i in range(ordered.shape[0]):
+        if u < 0 or ordered[i] != keys[u]:
+            u += 1
+            keys[u] = ordered[i]
+            one[u] = order[i]
+        if inverse:
+            back[order[i]] = u
+    return u + 1
 
 
 def merge_sorted(keys: NDArray[np.int64], starts: NDArray[np.int64]
@@ -133,27 +143,30 @@ def _edge_ends(triangles, corners, half_edges, out):
 
 
 def new_points(ends: NDArray[np.float64], per_edge: int,
-               rows: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
+               at: NDArray[np.integer] | None = None, out: NDArray[np.float64] | None = None
+               ) -> NDArray[np.float64]:
     """The ``per_edge`` new points of each edge ``(x_lo, y_lo, x_hi, y_hi)`` of ``ends
-    (E, 4)`` (its smaller vertex's coordinates first), or of the edges ``ends[rows]``:
-    ``(E * per_edge, 2)``, each edge's points listed from its smaller vertex, by the formula
-    of :func:`qdrefine.kernels.edge_points` (``edge_point``), so bit for bit the points that
-    refinement in memory makes."""
+    (E, 4)`` (its smaller vertex's coordinates first), each edge's listed from its smaller
+    vertex, by the formula of :func:`qdrefine.kernels.edge_points` (``edge_point``), so bit
+    for bit the points that refinement in memory makes: rows ``g k .. g k + k - 1`` of
+    ``out`` for edge ``g`` (default: a new ``(E k, 2)`` array), or for edge ``at[g]``
+    (``at (E,)``: several edges may have the same place if they are the same edge)."""
     ends = np.ascontiguousarray(ends, dtype=np.float64)
-    if rows is None:
-        rows = np.arange(ends.shape[0], dtype=np.int64)
-    out = np.empty((rows.shape[0] * per_edge, 2), dtype=np.float64)
-    _new_points(ends, rows, per_edge, out)
+    if at is None:
+        at = np.arange(ends.shape[0], dtype=np.int64)
+    if out is None:
+        out = np.empty((ends.shape[0] * per_edge, 2), dtype=np.float64)
+    _new_points(ends, at, per_edge, out)
     return out
 
 
 @njit(cache=True)
-def _new_points(ends, rows, per_edge, out):
-    for g in range(rows.shape[0]):
-        r = rows[g]
+def _new_points(ends, at, per_edge, out):
+    for g in range(ends.shape[0]):
+        r = at[g] * per_edge
         for j in range(per_edge):
             for x in range(2):
-                out[g * per_edge + j, x] = edge_point(ends[r, x], ends[r, 2 + x], j, per_edge)
+                out[r + j, x] = edge_point(ends[g, x], ends[g, 2 + x], j, per_edge)
 
 
 def global_children(children: NDArray[np.integer], vertices: NDArray[np.int64], n: int,
