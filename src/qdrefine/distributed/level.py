@@ -33,7 +33,11 @@ or in Zarr arrays under the run's temporary store, never in local files. The sta
    ``t T .. t T + T - 1``, with the inherited cell tags (and, for a next level, their corner
    coordinates); each tagged edge chunk is split by
    :func:`qdrefine.refine.split_tagged_edges`. The points (old points, then the new points
-   of the partitions in key order) are rechunked and written chunk by chunk.
+   of the partitions in key order) are written by one task per points chunk.
+
+Without a shuffle (up to :data:`DIRECT_PIECES` pieces), the pieces go from task to task as
+NumPy arrays, and there is one edge partition per :data:`EDGE_GROUP` triangle chunks; the
+per-chunk passes are in :mod:`qdrefine.distributed.chunks`.
 
 Every write covers whole Zarr chunks, so no two tasks write the same chunk.
 """
@@ -144,7 +148,7 @@ class _Direct(list):
     half-edges among its sorted distinct edges (:func:`_edge_pieces`), kept for its
     emission."""
 
-    inverses: list = []
+    inverses: list | tuple = ()
 
 
 class Level:
