@@ -516,9 +516,21 @@ def test_stores_on_s3(s3_bucket, client):
     assert_identical(mesh, "7t-qd", 2, store.to_mesh(f"{s3_bucket}/out.zarr"))
 
 
+def _profiling(dask_worker) -> bool:
+    return "profile" in dask_worker.periodic_callbacks
+
+
 @pytest.mark.parametrize("profile", [False, True])
 def test_the_local_workers_profiler_is_off_unless_asked_for(profile):
     with local_client(n_workers=1, processes=False, dashboard_address=":0",
                       profile=profile) as c:
-        on = c.run(lambda dask_worker: "profile" in dask_worker.periodic_callbacks)
+        on = c.run(_profiling)
     assert list(on.values()) == [profile]
+
+
+def test_the_profiler_stays_off_in_a_restarted_worker_process():
+    # a nanny restarts a worker that was killed (here: client.restart()) in a new process
+    with local_client(n_workers=1, processes=True, dashboard_address=":0") as c:
+        assert list(c.run(_profiling).values()) == [False]
+        c.restart()
+        assert list(c.run(_profiling).values()) == [False]

@@ -27,7 +27,8 @@ Progress = Callable[[str, int, int], Any]
 
 #: What every worker holds besides its tasks' data (Python, pandas, Zarr, the kernels), bytes.
 BASE_MEMORY = 400 * 2**20
-#: Bytes a task holds per row of a chunk, at most (emission of a 7T level, with coordinates).
+#: Bytes a task holds per row of a chunk, at most (measured about 1.2 KB: the emission of a
+#: 7T level with coordinates; an edge partition of 4 chunks, about 1 KB; docs/scale-out.md).
 BYTES_PER_ROW = 2048
 
 #: Default seconds a worker may stay paused (memory) before the run stops.
@@ -57,7 +58,6 @@ def local_client(n_workers: int | None = None, memory_limit: str | float = "auto
     dashboard's "Profile" page) runs only with ``profile=True``: sampling every 10 ms, it
     took about 10% of the workers' CPU time of a refinement (docs/scale-out.md).
     """
-    import dask
     from dask.system import CPU_COUNT
     from distributed import Client
 
@@ -65,11 +65,14 @@ def local_client(n_workers: int | None = None, memory_limit: str | float = "auto
         # no dashboard: its HTTP server (health checks) takes any free port, so two runs side
         # by side do not fight over 8787
         cluster_kwargs.setdefault("dashboard_address", ":0")
-    # a client given cluster arguments starts its own LocalCluster and closes it on close();
-    # the workers (and their nannies) read the configuration when they are made
-    with dask.config.set({"distributed.worker.profile.enabled": profile}):
-        return Client(n_workers=n_workers or CPU_COUNT, threads_per_worker=1,
-                      processes=processes, memory_limit=memory_limit, **cluster_kwargs)
+    # a client given cluster arguments starts its own LocalCluster and closes it on close()
+    client = Client(n_workers=n_workers or CPU_COUNT, threads_per_worker=1,
+                    processes=processes, memory_limit=memory_limit, **cluster_kwargs)
+    if not profile:  # a plugin: it also reaches workers restarted after a kill
+        from .plugins import NoProfiler
+
+        client.register_plugin(NoProfiler())
+    return client
 
 
 def _has_dashboard() -> bool:

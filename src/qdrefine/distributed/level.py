@@ -35,9 +35,10 @@ or in Zarr arrays under the run's temporary store, never in local files. The sta
    :func:`qdrefine.refine.split_tagged_edges`. The points (old points, then the new points
    of the partitions in key order) are written by one task per points chunk.
 
-Without a shuffle (up to :data:`DIRECT_PIECES` pieces), the pieces go from task to task as
-NumPy arrays, and there is one edge partition per :data:`EDGE_GROUP` triangle chunks; the
-per-chunk passes are in :mod:`qdrefine.distributed.chunks`.
+Up to :data:`DIRECT_PIECES` pieces, the pieces go from task to task as NumPy arrays instead
+of through a shuffle, with one edge partition per :data:`EDGE_GROUP` triangle chunks (one
+per chunk with a shuffle). The per-chunk passes of both paths are in
+:mod:`qdrefine.distributed.chunks`.
 
 Every write covers whole Zarr chunks, so no two tasks write the same chunk.
 """
@@ -85,13 +86,17 @@ _BINS = 4096
 DIRECT_PIECES = 5_000
 
 
-#: One edge partition per this many triangle chunks: each partition holds about as many
-#: edges as this many chunks have, within the memory a worker is checked for
-#: (:func:`~qdrefine.distributed.cluster.min_worker_memory`); the pieces exchanged, one
-#: small task each, are this many times fewer than with a partition per chunk, which on
-#: two workers cut the level-2 edge and emission stages by about a third
-#: (``docs/scale-out.md``).
+#: Without a shuffle, one edge partition per this many triangle chunks: each partition
+#: holds about as many edges as this many chunks have (about 1 KB per chunk row, within
+#: :func:`~qdrefine.distributed.cluster.min_worker_memory`'s 2 KiB); the pieces
+#: exchanged, one small task each, are this many times fewer than with a partition per
+#: chunk, which on two workers cut a 2-level run by about a third (``docs/scale-out.md``).
 EDGE_GROUP = 4
+
+
+def _release(futures: Sequence) -> None:
+    for future in futures:
+        future.release()
 
 
 def _bounds(n: int, chunk: int) -> list[tuple[int, int]]:
@@ -194,8 +199,7 @@ class Level:
             try:
                 self._emit(numbered, counts)
             finally:  # the partitions' results are no longer needed (nor recomputed)
-                for future in [*numbered, *getattr(numbered, "inverses", [])]:
-                    future.release()
+                _release([*numbered, *getattr(numbered, "inverses", [])])
 
     def _compute(self, tasks: list, keep: bool = False) -> list:
         return cluster.compute(self.client, tasks, keep=keep, **self.timeouts)
@@ -235,7 +239,7 @@ class Level:
         self._compute([write([r[j] for r in answers], job, a, b)
                        for j, (a, b) in enumerate(self.tri_ranges)])
 
-    def _splitters(self) -> tuple[int, ...]:
+    def _splitters(self, n_parts: int) -> tuple[int, ...]:
         """Divisions of the edge keys: vertex boundaries ``V_i`` (as keys ``V_i N``) that
         give every partition about the same number of half-edges."""
         from dask import delayed
@@ -249,7 +253,6 @@ class Level:
         counts = self._compute(parts)[0]
         bins = len(counts)
         cum = np.cumsum(counts)
-        n_parts = -(-len(self.tri_ranges) // EDGE_GROUP) or 1
         cuts = np.searchsorted(cum, cum[-1] * np.arange(1, n_parts) / n_parts, side="right")
         vertices = -(-(cuts.astype(np.int64) * job.n) // bins)  # first vertex of bin `cut`
         vertices = np.unique(vertices[(vertices > 0) & (vertices < job.n)])
@@ -262,10 +265,12 @@ class Level:
         from dask import delayed
 
         job = self.job
-        divisions = self._splitters()
-        n_parts = len(divisions) - 1
-        if (job.n_chunks + len(self.edge_ranges)) * n_parts <= DIRECT_PIECES:
-            return self._edges_direct(divisions)
+        # direct: one partition per EDGE_GROUP chunks (fewer pieces, one task each); the
+        # shuffle's cost does not grow with the pieces: one partition per chunk (less memory)
+        grouped = -(-len(self.tri_ranges) // EDGE_GROUP) or 1
+        if (job.n_chunks + len(self.edge_ranges)) * grouped <= DIRECT_PIECES:
+            return self._edges_direct(self._splitters(grouped))
+        divisions = self._splitters(max(1, len(self.tri_ranges)))
         meta = _meta("key", "j", "xlo", "ylo", "xhi", "yhi", ints=2)
         rows = dd.from_map(_edge_frame, list(enumerate(self.tri_ranges)), job=job, meta=meta)
         if self.edge_ranges:
@@ -275,8 +280,7 @@ class Level:
         number = delayed(_number_edges, pure=False)
         futures = self._compute([number(part, job, p) for p, part in enumerate(parts)],
                                 keep=True)
-        counts = self.client.gather(self.client.map(_count, futures, pure=False))
-        return futures, np.asarray(counts, dtype=np.int64)
+        return futures, self._counts(futures, futures)
 
     def _edges_direct(self, divisions: tuple[int, ...]) -> tuple[list, NDArray[np.int64]]:
         """Stage 2 without a shuffle: every chunk cuts its sorted distinct keys at the
@@ -296,8 +300,17 @@ class Level:
                                  for p in range(n_parts)] + inverses, keep=True)
         numbered = _Direct(futures[:n_parts])
         numbered.inverses = futures[n_parts:]
-        counts = self.client.gather(self.client.map(_count, numbered, pure=False))
-        return numbered, np.asarray(counts, dtype=np.int64)
+        return numbered, self._counts(numbered, futures)
+
+    def _counts(self, numbered: list, kept: list) -> NDArray[np.int64]:
+        """The partitions' numbers of edges; the ``kept`` futures are released if this
+        fails (e.g. on Ctrl-C), as :meth:`run` does once they have served."""
+        try:
+            counts = self.client.gather(self.client.map(_count, numbered, pure=False))
+        except BaseException:
+            _release(kept)
+            raise
+        return np.asarray(counts, dtype=np.int64)
 
     def _emit(self, numbered: list, counts: NDArray[np.int64]) -> None:
         """Stage 3: triangles, cell tags, tagged edges and points of the output store."""
