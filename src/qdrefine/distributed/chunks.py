@@ -1,7 +1,8 @@
-"""Per-chunk passes of the distributed level (:mod:`qdrefine.distributed.level`): the
-distinct values of a chunk's arrays, and, compiled, the children's global vertex rows and
-their corner coordinates (one pass each over the chunk's children instead of several NumPy
-passes with temporaries of the children's size).
+"""Per-chunk passes of the distributed level (:mod:`qdrefine.distributed.level`), compiled
+where they touch every edge or child: the distinct values of a chunk's arrays, the merge of
+an edge partition's sorted pieces, the end coordinates and new points of edges, and the
+children's global vertex rows and corner coordinates (one pass each instead of several
+NumPy passes with temporaries of that size).
 
 They run in the worker's one thread (a worker runs one task at a time; Dask's tasks are
 the parallelism).
