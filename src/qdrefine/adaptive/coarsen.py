@@ -30,7 +30,7 @@ from .families import Families
 from .history import families_of, with_history
 from .longest_edge import closure
 from .output import emit_step, without_points
-from .red_families import red_families, working_rows
+from .red_families import red_families
 from .rounds import (
     UPGRADE_LAYERS,
     SplitPlan,
@@ -39,7 +39,7 @@ from .rounds import (
     one_sided_pieces,
     working_edges,
 )
-from .working import Tree, start
+from .working import Tree, start, working_rows
 
 
 def coarsen(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd") -> Mesh:

@@ -23,7 +23,7 @@ from ..schemes import Scheme
 from .edgekeys import oriented
 from .families import Families
 from .overlap import signed_twice_areas
-from .working import emit_full
+from .working import emit_full, working_rows
 
 
 def red_families(mesh: Mesh, fam: Families, marked: NDArray[np.bool_], sch: Scheme
@@ -134,15 +134,6 @@ def _contains(tri: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.bo
         out &= (b[..., 0] - a[..., 0]) * (p[..., 1] - a[..., 1]) \
             - (b[..., 1] - a[..., 1]) * (p[..., 0] - a[..., 0]) >= 0
     return out
-
-
-def working_rows(mesh: Mesh, fam: Families) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """The working triangles: the triangles that are not transition children, then one
-    parent per transition family ``(W, 3)``; and the mesh triangle of each (the family's
-    first member)."""
-    plain = np.flatnonzero(fam.member < 0)
-    rows = np.concatenate([mesh.triangles[plain].astype(np.int64), fam.parent_triangles])
-    return rows, np.concatenate([plain, fam.first()])
 
 
 @njit(cache=True)

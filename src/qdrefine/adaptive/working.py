@@ -69,20 +69,29 @@ def start(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_],
         raise ValueError(f"families do not fit: {member.shape[0]} members for "
                          f"{mesh.n_triangles} triangles, {fam.per_edge} points per edge for "
                          f"{sch.name}")
+    rows, owner = working_rows(mesh, fam)
+    t0 = owner[:rows.shape[0] - fam.n_families]
     g = np.flatnonzero(marked & (member >= 0))
-    inp = StepInput(mesh, sch, fam, np.stack([g, member[g]], axis=1), fam.first(),
+    inp = StepInput(mesh, sch, fam, np.stack([g, member[g]], axis=1), owner[t0.size:],
                     fam.counts(), fam.codes())
-    t0 = np.flatnonzero(member < 0)
     f1 = np.arange(fam.n_families)
     own = np.concatenate([marked[t0], fam_marked])
     keys, pts = fam.registry()
-    rows = np.concatenate([mesh.triangles[t0].astype(np.int64), fam.parent_triangles])
-    tree = Tree(rows, np.concatenate([t0, inp.first]), np.concatenate([-1 + 0 * t0, f1]),
+    tree = Tree(rows, owner, np.concatenate([-1 + 0 * t0, f1]),
                 own, own.copy(), np.zeros(own.size, bool), np.zeros(own.size, bool),
                 canonical_labels(mesh.points, rows), mesh.points, keys, pts,
                 keys if earlier is None else earlier)
     parents_of_marked = t0.size + np.unique(inp.pairs[:, 1])
     return inp, tree, expand(tree, parents_of_marked, sch)
+
+
+def working_rows(mesh: Mesh, fam: Families) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The working triangles: the triangles that are not transition children, then one
+    parent per transition family ``(W, 3)``; and the mesh triangle of each (the family's
+    first member)."""
+    plain = np.flatnonzero(fam.member < 0)
+    rows = np.concatenate([mesh.triangles[plain].astype(np.int64), fam.parent_triangles])
+    return rows, np.concatenate([plain, fam.first()])
 
 
 def expand(tree: Tree, nodes: NDArray[np.int64], sch: Scheme) -> NDArray[np.int64]:
