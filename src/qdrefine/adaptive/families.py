@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from .edgekeys import edge_keys, oriented
@@ -48,19 +49,16 @@ class Families:
         if stencil.shape not in ((f, 6), (f, 10)):
             raise ValueError(f"families: stencil must have shape ({f}, 6) or ({f}, 10), got "
                              f"{stencil.shape}")
-        if member.size and (member.min() < -1 or member.max() >= f):
-            raise ValueError(f"families: member ids must be in -1..{f - 1}")
         for name, value in (("member", member), ("parent_triangles", rows), ("stencil", stencil)):
             value.flags.writeable = False
             object.__setattr__(self, name, value)
-        count = self.counts()
-        idx = np.flatnonzero(member >= 0)
-        last = np.full(f, -1, dtype=np.int64)
-        np.maximum.at(last, member[idx], idx)
-        if ((count < 2) | (last - self.first() + 1 != count)).any():
-            bad = int(np.flatnonzero((count < 2) | (last - self.first() + 1 != count))[0])
-            raise ValueError(f"families: family {bad} does not have two or more consecutive "
-                             "members")
+        first, last, count = family_spans(member, f)
+        if first is None:
+            raise ValueError(f"families: member ids must be in -1..{f - 1}")
+        bad = (count < 2) | (last - first + 1 != count)
+        if bad.any():
+            raise ValueError(f"families: family {int(np.flatnonzero(bad)[0])} does not have "
+                             "two or more consecutive members")
 
     @classmethod
     def empty(cls, n_triangles: int, per_edge: int) -> Families:
@@ -90,10 +88,7 @@ class Families:
 
     def first(self) -> NDArray[np.int64]:
         """First member of each family ``(F,)``."""
-        first = np.full(self.n_families, self.member.size, dtype=np.int64)
-        idx = np.flatnonzero(self.member >= 0)
-        np.minimum.at(first, self.member[idx], idx)
-        return first
+        return family_spans(self.member, self.n_families)[0]
 
     def codes(self) -> NDArray[np.int64]:
         """Split code of each family's transition (bits ``MN=1, NO=2, OM=4``)."""
@@ -113,3 +108,30 @@ class Families:
             pts.append(oriented(p[ok], a[ok], b[ok]))
         keys_, first = np.unique(np.concatenate(keys), return_index=True)
         return keys_, np.concatenate(pts).reshape(-1, k)[first]
+
+
+def family_spans(member: NDArray[np.int64], f: int):
+    """First and last member and member count of each of ``f`` families ``(F,)`` (first
+    ``M`` and last ``-1`` for a family without members), from ``member (M,)`` in one
+    compiled pass; ``(None, None, None)`` if an id is outside ``-1 .. f - 1``."""
+    first = np.full(f, member.shape[0], dtype=np.int64)
+    last = np.full(f, -1, dtype=np.int64)
+    count = np.zeros(f, dtype=np.int64)
+    if not _member_spans(member, first, last, count):
+        return None, None, None
+    return first, last, count
+
+
+@njit(cache=True)
+def _member_spans(member, first, last, count):
+    f = first.shape[0]
+    for t in range(member.shape[0]):
+        m = member[t]
+        if m < -1 or m >= f:
+            return False
+        if m >= 0:
+            if count[m] == 0:
+                first[m] = t
+            last[m] = t
+            count[m] += 1
+    return True

@@ -171,8 +171,18 @@ def _families(rows: NDArray[np.int64], start: NDArray[np.int64], nk: NDArray[np.
     order = np.argsort(items)
     items, parent, sten = items[order], parent[order], sten[order]
     member = np.full(int(start[-1]), -1, dtype=np.int64)
-    member[blocks(start[items], nk[items])] = np.repeat(np.arange(items.size), nk[items])
+    _fill_members(start, nk, items, member)
     return Families(member, parent.reshape(-1, 3), sten.reshape(-1, old.stencil.shape[1]))
+
+
+@njit(cache=True)
+def _fill_members(start, nk, items, member):
+    """``member[start[i]:start[i] + nk[i]] = f`` for each family ``f`` of working triangle
+    ``i = items[f]``."""
+    for f in range(items.shape[0]):
+        i = items[f]
+        for r in range(start[i], start[i] + nk[i]):
+            member[r] = f
 
 
 def without_points(mesh: Mesh, fam: Families, keep: NDArray[np.bool_],

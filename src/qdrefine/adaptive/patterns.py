@@ -24,7 +24,6 @@ from numpy.typing import NDArray
 
 from ..jit import threads_for
 from ..stencil import CENTROID, FIXED_7T, FOUR, SEVEN, Stencil, with_centroid
-from .edgekeys import oriented
 from .labels import MN, NO, OM
 
 #: Split codes with a transition pattern (neither unsplit nor fully split).
@@ -140,7 +139,20 @@ def tables(k: int, code: int) -> tuple[NDArray[np.int8], NDArray[np.int64], NDAr
 def canonical_corners(points: NDArray[np.float64], rows: NDArray[np.int64],
                       labels: NDArray[np.int8]) -> NDArray[np.float64]:
     """Coordinates ``(G, 3, 2)`` of the canonical vertices ``M, N, O`` of ``rows (G, 3)``."""
-    return points[np.take_along_axis(rows, labels.astype(np.int64), axis=1)]
+    out = np.empty((rows.shape[0], 3, 2))
+    with threads_for(rows.shape[0]):
+        _corners(np.ascontiguousarray(points, dtype=np.float64), np.ascontiguousarray(rows),
+                 np.ascontiguousarray(labels), out)
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _corners(points, rows, labels, out):
+    for g in prange(rows.shape[0]):
+        for e in range(3):
+            v = rows[g, labels[g, e]]
+            out[g, e, 0] = points[v, 0]
+            out[g, e, 1] = points[v, 1]
 
 
 def stencil_coordinates(corners: NDArray[np.float64], k: int) -> NDArray[np.float64]:
@@ -226,25 +238,31 @@ def _tan_min(ax, ay, bx, by, cx, cy):
     return abs(ex * fy - ey * fx) / dot
 
 
+#: Triangles per work item of :func:`_choose` (one scratch array each).
+CHOOSE_CHUNK = 256
+
+
 @njit(parallel=True, cache=True)
 def _choose(coords, tris, cand, choice, score):
     n_u = tris.shape[0]
-    for g in prange(coords.shape[0]):
+    n = coords.shape[0]
+    for chunk in prange((n + CHOOSE_CHUNK - 1) // CHOOSE_CHUNK):
         ang = np.empty(n_u + 1)
-        for u in range(n_u):
-            a, b, c = tris[u, 0], tris[u, 1], tris[u, 2]
-            ang[u] = _tan_min(coords[g, a, 0], coords[g, a, 1], coords[g, b, 0],
-                              coords[g, b, 1], coords[g, c, 0], coords[g, c, 1])
         ang[n_u] = np.inf
-        best, at = -1.0, 0
-        for c in range(cand.shape[0]):
-            s = np.inf
-            for t in range(cand.shape[1]):
-                s = min(s, ang[cand[c, t]])
-            if s > best:  # the first candidate on ties
-                best, at = s, c
-        choice[g] = at
-        score[g] = np.degrees(np.arctan(best))
+        for g in range(chunk * CHOOSE_CHUNK, min(n, (chunk + 1) * CHOOSE_CHUNK)):
+            for u in range(n_u):
+                a, b, c = tris[u, 0], tris[u, 1], tris[u, 2]
+                ang[u] = _tan_min(coords[g, a, 0], coords[g, a, 1], coords[g, b, 0],
+                                  coords[g, b, 1], coords[g, c, 0], coords[g, c, 1])
+            best, at = -1.0, 0
+            for c in range(cand.shape[0]):
+                s = np.inf
+                for t in range(cand.shape[1]):
+                    s = min(s, ang[cand[c, t]])
+                if s > best:  # the first candidate on ties
+                    best, at = s, c
+            choice[g] = at
+            score[g] = np.degrees(np.arctan(best))
 
 
 def choose(coords: NDArray[np.float64], k: int, code: int
@@ -280,14 +298,25 @@ def stencil_ids(t: NDArray, labels: NDArray[np.int8], ce: NDArray[np.int64],
                 ep: NDArray[np.int64], k: int) -> NDArray[np.int64]:
     """Global point ids ``(G, 3 + 3k)`` of the local stencil (``-1`` on unsplit edges),
     from the edge points ``ep (E, k)`` listed from the lower id."""
-    g = t.shape[0]
-    verts = np.take_along_axis(t.astype(np.int64), labels.astype(np.int64), axis=1)
-    ids = np.full((g, 3 + 3 * k), -1, dtype=np.int64)
-    ids[:, :3] = verts
-    for e in range(3):
-        ids[:, 3 + k * e: 3 + k * (e + 1)] = oriented(ep[ce[:, e]], verts[:, e],
-                                                        verts[:, (e + 1) % 3])
+    ids = np.empty((t.shape[0], 3 + 3 * k), dtype=np.int64)
+    with threads_for(t.shape[0]):
+        _stencil_ids(np.ascontiguousarray(t), np.ascontiguousarray(labels),
+                     np.ascontiguousarray(ce), np.ascontiguousarray(ep, dtype=np.int64), k,
+                     ids)
     return ids
+
+
+@njit(parallel=True, cache=True)
+def _stencil_ids(t, labels, ce, ep, k, ids):
+    """:func:`stencil_ids` into ``ids``: the canonical corners, then each canonical edge's
+    points relisted from its first corner."""
+    for g in prange(t.shape[0]):
+        for e in range(3):
+            ids[g, e] = t[g, labels[g, e]]
+        for e in range(3):
+            a, b, row = ids[g, e], ids[g, (e + 1) % 3], ce[g, e]
+            for i in range(k):
+                ids[g, 3 + k * e + i] = ep[row, i] if a < b else ep[row, k - 1 - i]
 
 
 def pattern(ids: NDArray[np.int64], labels: NDArray[np.int8], k: int, code: int,

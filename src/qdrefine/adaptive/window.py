@@ -24,7 +24,7 @@ from ..mesh import Mesh, index_dtype
 from ..numbering import incidence
 from ..schemes import Scheme
 from .edgekeys import KEY, edge_keys, lookup
-from .families import Families
+from .families import Families, family_spans
 from .reach import reached_triangles
 from .step import Step, step
 
@@ -212,8 +212,7 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
                                np.where(res.families.stencil >= 0,
                                         to_global[np.maximum(res.families.stencil, 0)], -1)])
     present = member >= 0
-    first_of = np.full(fam.n_families + res.families.n_families, total, dtype=np.int64)
-    np.minimum.at(first_of, member[present], np.flatnonzero(present))
+    first_of = family_spans(member, fam.n_families + res.families.n_families)[0]
     order = np.argsort(first_of[ids], kind="stable")
     renum = np.full(first_of.size, -1, dtype=np.int64)
     renum[ids[order]] = np.arange(ids.size)
