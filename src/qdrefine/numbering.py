@@ -23,11 +23,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from .jit import AHEAD, prefetch, prefetch_write, threads_for, unsigned
+from .jit import AHEAD, PARALLEL_MIN, prefetch, prefetch_write, threads_for, unsigned
 
 __all__ = ["EdgeBuckets", "sort_edges", "number_edges", "bucket_points", "edge_point", "edge_ids",
            "index_dtype", "incidence"]
@@ -333,13 +334,27 @@ def edge_ids(mesh_edges: NDArray, query: NDArray, n: int) -> NDArray[np.int64]:
     return np.where(found, pos, -1)
 
 
+#: Most chunks of :func:`incidence`'s parallel counting sort (each holds a count per id).
+INCIDENCE_CHUNKS = 4
+
+
 def incidence(table: NDArray[np.integer], n: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """The rows of ``table (M, 3)`` that hold each id ``0 .. n - 1`` (vertices, edges ...):
     ``rows[start[i]:start[i + 1]]`` in increasing order (CSR, ``(n + 1,)`` and ``(3M,)``
-    int64), by one counting sort."""
+    int64), by one counting sort: on large tables a parallel one over up to
+    :data:`INCIDENCE_CHUNKS` consecutive blocks of rows (a count per id and block; the
+    blocks fill their slices of each id's range in order, so the result is the same)."""
     start = np.zeros(n + 1, dtype=np.int64)
     rows = np.empty(3 * table.shape[0], dtype=np.int64)
-    _incidence(table, n, start, rows)
+    chunks = 1
+    if table.shape[0] >= PARALLEL_MIN:
+        chunks = max(1, min(INCIDENCE_CHUNKS, numba.get_num_threads()))
+    if chunks == 1:
+        _incidence(table, n, start, rows)
+    else:
+        bounds = np.linspace(0, table.shape[0], chunks + 1).astype(np.int64)
+        cursor = np.zeros((chunks, n), dtype=np.int64)
+        _incidence_blocks(table, bounds, start, cursor, rows)
     return start, rows
 
 
@@ -356,3 +371,28 @@ def _incidence(table, n, start, rows):
             v = table[t, j]
             rows[fill[v]] = t
             fill[v] += 1
+
+
+@njit(parallel=True, cache=True)
+def _incidence_blocks(table, bounds, start, cursor, rows):
+    """:func:`incidence` by blocks of rows ``bounds[c] .. bounds[c + 1] - 1``: counts per
+    block (in ``cursor``), the offsets, then each block fills from its cursor."""
+    chunks, n = cursor.shape
+    for c in prange(chunks):
+        for t in range(bounds[c], bounds[c + 1]):
+            for j in range(3):
+                cursor[c, table[t, j]] += 1
+    at = 0
+    for v in range(n):
+        start[v] = at
+        for c in range(chunks):
+            count = cursor[c, v]
+            cursor[c, v] = at
+            at += count
+    start[n] = at
+    for c in prange(chunks):
+        for t in range(bounds[c], bounds[c + 1]):
+            for j in range(3):
+                v = table[t, j]
+                rows[cursor[c, v]] = t
+                cursor[c, v] += 1

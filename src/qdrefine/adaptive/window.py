@@ -16,9 +16,10 @@ arrays), the rings (by vertex flags) and the copy of the untouched triangles.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import NDArray
 
+from ..jit import threads_for
 from ..memory import check_needed, local_memory_needed
 from ..mesh import Mesh, index_dtype
 from ..numbering import incidence
@@ -173,7 +174,9 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     n_sub = verts.size
     rows = np.flatnonzero(window)
     count = np.ones(mesh.n_triangles, dtype=np.int64)
-    count[rows] = np.bincount(res.parents, minlength=rows.size)
+    per_row = np.bincount(res.parents, minlength=rows.size)
+    count[rows] = per_row
+    sub_first = np.concatenate([[0], np.cumsum(per_row)])
     first = np.cumsum(count) - count
     total = int(count.sum())
     check_needed(local_memory_needed(n_output=total),
@@ -184,10 +187,11 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     dtype = index_dtype(points.shape[0])
     tris = np.empty((total, 3), dtype=dtype)
     member = np.full(total, -1, dtype=np.int64)
-    _copy_outside(window, first, mesh.triangles, fam.member, tris, parents, member)
     out_rows = np.empty(sub.n_triangles, dtype=np.int64)
-    _place_window(first, rows, res.parents, sub.triangles, to_global, res.families.member,
-                  fam.n_families, tris, parents, member, out_rows)
+    with threads_for(mesh.n_triangles):
+        _copy_outside(window, first, mesh.triangles, fam.member, tris, parents, member)
+        _place_window(first, rows, sub_first, sub.triangles, to_global,
+                      res.families.member, fam.n_families, tris, parents, member, out_rows)
     tags = None
     if mesh.cell_tags is not None:
         tags = mesh.cell_tags[parents]
@@ -224,11 +228,12 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
                 *_global_registry(res, to_global))
 
 
-@njit(cache=True)
+@njit(parallel=True, cache=True)
 def _copy_outside(window, first, triangles, member, tris, parents, member_out):
     """Each triangle outside the window to its output row ``first[t]``: its vertex row,
-    itself as parent, its family (one pass; most of the mesh when marks are scattered)."""
-    for t in range(window.shape[0]):
+    itself as parent, its family (one parallel pass; most of the mesh when marks are
+    scattered)."""
+    for t in prange(window.shape[0]):
         if not window[t]:
             r = first[t]
             for j in range(3):
@@ -237,22 +242,21 @@ def _copy_outside(window, first, triangles, member, tris, parents, member_out):
             member_out[r] = member[t]
 
 
-@njit(cache=True)
-def _place_window(first, rows, sub_parents, sub_triangles, to_global, sub_member, n_fam,
+@njit(parallel=True, cache=True)
+def _place_window(first, rows, sub_first, sub_triangles, to_global, sub_member, n_fam,
                   tris, parents, member, out_rows):
-    """Each output triangle of the window's step to its row: after the earlier children of
-    its window parent (``sub_parents`` increasing), from that parent's first row; its
-    vertices in global ids, its parent, its family after the untouched ones."""
-    rank = 0
-    for i in range(sub_parents.shape[0]):
-        p = sub_parents[i]
-        rank = rank + 1 if i and p == sub_parents[i - 1] else 0
-        r = first[rows[p]] + rank
-        out_rows[i] = r
-        for j in range(3):
-            tris[r, j] = to_global[sub_triangles[i, j]]
-        parents[r] = rows[p]
-        member[r] = n_fam + sub_member[i] if sub_member[i] >= 0 else -1
+    """The output triangles ``sub_first[p] .. sub_first[p + 1] - 1`` of the window's step
+    (the children of window triangle ``p``, its parents being increasing) to the rows from
+    ``first[rows[p]]`` on: their vertices in global ids, their parent, their family after
+    the untouched ones (parallel over the window's triangles)."""
+    for p in prange(rows.shape[0]):
+        r = first[rows[p]] - sub_first[p]
+        for i in range(sub_first[p], sub_first[p + 1]):
+            out_rows[i] = r + i
+            for j in range(3):
+                tris[r + i, j] = to_global[sub_triangles[i, j]]
+            parents[r + i] = rows[p]
+            member[r + i] = n_fam + sub_member[i] if sub_member[i] >= 0 else -1
 
 
 def _global_registry(res: Step, to_global: NDArray[np.int64]
