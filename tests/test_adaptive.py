@@ -608,6 +608,7 @@ def test_history_is_validated_and_can_be_dropped():
     for member in (np.r_[0, 0, 1], np.r_[0, 0, -2]):  # ids outside -1..F-1
         with pytest.raises(ValueError, match="member ids"):
             Families(member, np.zeros((1, 3)), -np.ones((1, 10)))
+        assert member.flags.writeable  # a refused array is left as it was
     with pytest.raises(ValueError, match="family 1 does not"):  # one member only
         Families(np.r_[0, 0, 1], np.zeros((2, 3)), -np.ones((2, 10)))
     fam = Families(np.r_[-1, 1, 1, 0, 0, 0], np.zeros((2, 3)), -np.ones((2, 10)))

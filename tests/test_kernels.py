@@ -407,3 +407,19 @@ def test_incidence_blocks_match_a_stable_argsort(n, m, chunks, seed):
     assert np.array_equal(rows, expected_rows)
     s, r = incidence(table, n)  # the sequential pass below PARALLEL_MIN rows
     assert np.array_equal(s, expected_start) and np.array_equal(r, expected_rows)
+
+
+@pytest.mark.parametrize("n", [100, 60_000, 500_000])
+def test_incidence_of_a_large_table_matches_a_stable_argsort(n):
+    """:func:`incidence` itself above ``PARALLEL_MIN`` rows: blocks as many as the threads
+    allow (few ids), or as ``3M / n`` allows (about one id per entry), or one (more ids
+    than entries); the same table each time."""
+    from qdrefine.jit import PARALLEL_MIN
+    from qdrefine.numbering import incidence
+
+    m = PARALLEL_MIN + 7_000
+    table = np.random.default_rng(n).integers(0, n, size=(m, 3))
+    flat = table.reshape(-1)
+    start, rows = incidence(table, n)
+    assert np.array_equal(rows, np.argsort(flat, kind="stable") // 3)
+    assert np.array_equal(start, np.concatenate([[0], np.cumsum(np.bincount(flat, minlength=n))]))

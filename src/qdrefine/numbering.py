@@ -343,12 +343,14 @@ def incidence(table: NDArray[np.integer], n: int) -> tuple[NDArray[np.int64], ND
     ``rows[start[i]:start[i + 1]]`` in increasing order (CSR, ``(n + 1,)`` and ``(3M,)``
     int64), by one counting sort: on large tables a parallel one over up to
     :data:`INCIDENCE_CHUNKS` consecutive blocks of rows (a count per id and block; the
-    blocks fill their slices of each id's range in order, so the result is the same)."""
+    blocks fill their slices of each id's range in order, so the result is the same). The
+    blocks are at most ``3M / n``, so that their counts take no more memory than ``rows``."""
     start = np.zeros(n + 1, dtype=np.int64)
     rows = np.empty(3 * table.shape[0], dtype=np.int64)
     chunks = 1
     if table.shape[0] >= PARALLEL_MIN:
-        chunks = max(1, min(INCIDENCE_CHUNKS, numba.get_num_threads()))
+        chunks = max(1, min(INCIDENCE_CHUNKS, numba.get_num_threads(),
+                            3 * table.shape[0] // max(n, 1)))
     if chunks == 1:
         _incidence(table, n, start, rows)
     else:

@@ -49,12 +49,12 @@ class Families:
         if stencil.shape not in ((f, 6), (f, 10)):
             raise ValueError(f"families: stencil must have shape ({f}, 6) or ({f}, 10), got "
                              f"{stencil.shape}")
-        for name, value in (("member", member), ("parent_triangles", rows), ("stencil", stencil)):
-            value.flags.writeable = False
-            object.__setattr__(self, name, value)
         first, last, count = family_spans(member, f)
         if first is None:
             raise ValueError(f"families: member ids must be in -1..{f - 1}")
+        for name, value in (("member", member), ("parent_triangles", rows), ("stencil", stencil)):
+            value.flags.writeable = False
+            object.__setattr__(self, name, value)
         bad = (count < 2) | (last - first + 1 != count)
         if bad.any():
             raise ValueError(f"families: family {int(np.flatnonzero(bad)[0])} does not have "
