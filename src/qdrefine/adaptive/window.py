@@ -174,6 +174,10 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     n_sub = verts.size
     rows = np.flatnonzero(window)
     count = np.ones(mesh.n_triangles, dtype=np.int64)
+    if res.parents.size > 1 and (res.parents[1:] < res.parents[:-1]).any():
+        # _place_window takes each window triangle's children as one run, in order
+        raise RuntimeError("internal error: the window's step listed its children out of "
+                           "parent order")
     per_row = np.bincount(res.parents, minlength=rows.size)
     count[rows] = per_row
     sub_first = np.concatenate([[0], np.cumsum(per_row)])
