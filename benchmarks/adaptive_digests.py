@@ -1,5 +1,7 @@
-"""Digests of every output array of many adaptive refinement scenarios, to show that a
-change keeps the outputs bit for bit: run it on two source trees and compare the lines.
+"""Digests of the outputs of many adaptive refinement scenarios, one line each.
+
+Shows that a change keeps every output array bit for bit: run it on two source trees and
+compare the lines.
 
 Scenarios: the Gmsh examples (``l_shape``, ``plate_with_hole``, ``step``,
 ``boundary_layer``, ``graded``) with each of 7T-QD, 7T-LE, 4T-LE and 7T-D, six cycles of
