@@ -110,7 +110,7 @@ class Families:
         return keys_, np.concatenate(pts).reshape(-1, k)[first]
 
 
-def family_spans(member: NDArray[np.int64], f: int):
+def family_spans(member: NDArray[np.int64], f: int) -> tuple[NDArray[np.int64] | None, ...]:
     """First and last member and member count of each of ``f`` families ``(F,)`` (first
     ``M`` and last ``-1`` for a family without members), from ``member (M,)`` in one
     compiled pass; ``(None, None, None)`` if an id is outside ``-1 .. f - 1``."""
