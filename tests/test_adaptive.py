@@ -681,6 +681,69 @@ def test_a_step_on_a_window_is_the_step_on_the_whole_mesh(scheme, marks, monkeyp
         assert len(calls) > 4  # and a window regrown where its rim was split
 
 
+def test_a_waiting_upgrade_across_the_rim_grows_the_window(monkeypatch):
+    """A transition left waiting for an upgrade (judged outside the closure of its step's
+    marks, with no split edge across its ``NO``) is upgraded by the first later step that
+    changes the triangle across ``NO``, however far that step's marks are. A window that
+    holds that triangle but not the transition must grow (the window's step does not see
+    the transition and leaves that rim edge unsplit): the result equals the whole-mesh
+    step's, with the transition upgraded. The window is forced to be everything but the
+    transition, any window must give the whole step's result."""
+    from qdrefine.adaptive import window
+    from qdrefine.adaptive.edgekeys import edge_keys
+    from qdrefine.adaptive.labels import canonical_labels
+    from qdrefine.adaptive.rounds import waiting_upgrades
+
+    mesh = refine(examples.gmsh_mesh("boundary_layer"), "7t-qd", 1)
+    for cycle in range(3):
+        mesh = refine(mesh, "7t-qd", marked=marking.mark_random(mesh, 0.05, seed=30 + cycle))
+    fam = families_of(mesh, 2)[1]
+    rows = fam.parent_triangles
+    g = np.arange(rows.shape[0])
+    labels = canonical_labels(mesh.points, rows)
+    no = edge_keys(rows[g, labels[:, 1]], rows[g, labels[:, 2]])
+    waiting = np.flatnonzero(waiting_upgrades(mesh.points, fam, g, no, get_scheme("7t-qd")))
+    assert waiting.size
+    t = mesh.triangles
+    f = int(waiting[0])
+    a, b = divmod(int(no[f]), 1 << 32)
+    members = np.flatnonzero(fam.member == f)
+    across = [u for u in np.flatnonzero((t == a).any(1) & (t == b).any(1))
+              if fam.member[u] != f]
+    assert len(across) == 1 and fam.member[across[0]] < 0  # U: plain, no split edge
+    u = across[0]
+    # X: a neighbour of U across another edge; marking it changes U, not by splitting NO
+    x = next(v for j in range(3) if {t[u, j], t[u, (j + 1) % 3]} != {a, b}
+             for v in np.flatnonzero((t == t[u, j]).any(1) & (t == t[u, (j + 1) % 3]).any(1))
+             if v != u)
+    marked = np.zeros(mesh.n_triangles, dtype=bool)
+    marked[x] = True
+    monkeypatch.setattr(window, "WHOLE_BELOW", 10**9)
+    whole, p_whole = refine_with_parents(mesh, "7t-qd", marked=marked)
+    upgraded = np.isin(p_whole, members)
+    assert not np.array_equal(whole.triangles[upgraded], t[members])  # the upgrade is made
+
+    monkeypatch.setattr(window, "WHOLE_BELOW", 0)
+    monkeypatch.setattr(window, "WHOLE_ABOVE", 1.01)
+    grown = window._grown
+    first = []
+
+    def everything_but_the_transition(triangles, n_points, seed, rings):
+        if first:
+            return grown(triangles, n_points, seed, rings)
+        first.append(1)
+        out = np.ones(triangles.shape[0], dtype=bool)
+        out[members] = False
+        return out
+
+    monkeypatch.setattr(window, "_grown", everything_but_the_transition)
+    windowed, p_windowed = refine_with_parents(mesh, "7t-qd", marked=marked)
+    for name in ("points", "triangles", "transitions"):
+        np.testing.assert_array_equal(getattr(windowed, name), getattr(whole, name),
+                                      err_msg=name)
+    np.testing.assert_array_equal(p_windowed, p_whole)
+
+
 @pytest.mark.parametrize("name, scheme, fraction", [
     ("plate_with_hole", "7t-qd", 0.01), ("boundary_layer", "7t-qd", 0.02),
     ("step", "7t-le", 0.01), ("l_shape", "4t-le", 0.03), ("graded", "7t-d", 0.01)])

@@ -15,7 +15,8 @@ from ..mesh import index_dtype
 from ..partition import partition_many
 from ..schemes import Scheme
 from .edgekeys import edge_keys, lookup, lookup_sorted
-from .labels import MN, NO, OM, canonical_edges, edge_split_codes
+from .families import Families
+from .labels import MN, NO, OM, canonical_edges, canonical_labels, edge_split_codes
 from .longest_edge import closure, touching
 from .patterns import canonical_corners, min_angles, quality, stencil_coordinates
 from .working import StepInput, Tree, expand, with_edge_points
@@ -198,6 +199,36 @@ def upgrade_verdicts(points: NDArray[np.float64], rows: NDArray, labels: NDArray
     else:
         verdict = upgraded(quality(coords, k, MN | OM), full_quality(corners, sch), own)
     return verdict.astype(np.int8)
+
+
+def waiting_upgrades(points: NDArray[np.float64], fam: Families, families: NDArray[np.int64],
+                     keys: NDArray[np.int64], sch: Scheme) -> NDArray[np.bool_]:
+    """``(G,) bool``: which of the transitions ``families (G,)`` a step upgrades as soon as
+    the triangle across their parent's edge with key ``keys (G,)`` gets a split edge: that
+    edge is the parent's unsplit ``NO`` and the upgrade rule (:class:`Upgrades`) says so.
+
+    An earlier step left such a transition waiting: its upgrade was judged outside the
+    closure of that step's marks, where it may not bring a new triangle in, and the
+    triangle across ``NO`` had no split edge. Once that triangle changes, in any later step
+    and however far from the marks, every triangle around ``NO`` has a split edge and the
+    upgrade is made."""
+    out = np.zeros(families.shape[0], dtype=bool)
+    if sch.stencil.per_edge != 2 or not families.size:
+        return out
+    rows = fam.parent_triangles[families]
+    labels = canonical_labels(points, rows)
+    g = np.arange(rows.shape[0])
+    code = fam.codes()[families]
+    no_key = edge_keys(rows[g, labels[:, 1]], rows[g, labels[:, 2]])
+    idx = np.flatnonzero((no_key == keys) & (code & NO == 0))
+    if not idx.size:
+        return out
+    up = upgrade_verdicts(points, rows[idx], labels[idx], 0, sch) == 1
+    om = np.flatnonzero(~up & (code[idx] & OM != 0))
+    if om.size:
+        up[om] = upgrade_verdicts(points, rows[idx[om]], labels[idx[om]], 1, sch) == 1
+    out[idx[up]] = True
+    return out
 
 
 def full_quality(corners: NDArray[np.float64], sch: Scheme) -> NDArray[np.float64]:

@@ -4,13 +4,16 @@ into the untouched rest.
 
 The step's decisions are local (closure along split edges, patterns by a triangle's own
 shape), so on a window whose rim keeps all its edges unsplit the step does exactly what it
-does on the whole mesh; the window's points are renumbered in increasing global order, so
-split edges, new points and centroids come out in the same order too, and the stitched
-result is identical to the whole-mesh step (tested). The window starts from an estimate
-of what the step reaches (:mod:`~qdrefine.adaptive.reach`) on a mesh without transitions,
-from two vertex rings around the marks otherwise. The only passes over the whole mesh are
-linear: the vertex-to-triangle table, the estimate's flags (a few passes over ``(M,)``
-arrays), the rings (by vertex flags) and the copy of the untouched triangles.
+does on the whole mesh, with one exception: a transition that an earlier step left waiting
+for an upgrade is upgraded once the triangle across its ``NO`` edge changes, so such a
+transition across the rim grows the window too. The window's points are renumbered in
+increasing global order, so split edges, new points and centroids come out in the same
+order too, and the stitched result is identical to the whole-mesh step (tested). The
+window starts from an estimate of what the step reaches (:mod:`~qdrefine.adaptive.reach`)
+on a mesh without transitions, from two vertex rings around the marks otherwise. The only
+passes over the whole mesh are linear: the vertex-to-triangle table, the estimate's flags
+(a few passes over ``(M,)`` arrays), the rings (by vertex flags) and the copy of the
+untouched triangles.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from ..schemes import Scheme
 from .edgekeys import KEY, edge_keys, lookup
 from .families import Families, family_spans
 from .reach import reached_triangles
+from .rounds import waiting_upgrades
 from .step import Step, step
 
 #: Below this many triangles the step runs on the whole mesh.
@@ -64,7 +68,7 @@ def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.
         res, verts = _sub_step(mesh, window, marked, fam_marked, sch, fam, verdicts)
         to_global = np.concatenate([verts, mesh.n_points
                                     + np.arange(res.mesh.n_points - verts.size)])
-        rim = _split_rim(mesh.triangles, start, tris_of, window, to_global, res)
+        rim = _split_rim(mesh, start, tris_of, window, to_global, res, fam, sch)
         if not rim.any():
             return _stitched(mesh, window, verts, to_global, res, fam)
         window |= _grown(mesh.triangles, mesh.n_points, rim, 2)
@@ -138,20 +142,73 @@ def _sub_step(mesh: Mesh, window: NDArray[np.bool_], marked: NDArray[np.bool_],
     return step(sub, marked[rows], fam_marked[used], sch, sub_fam, known), verts
 
 
-def _split_rim(triangles: NDArray, start: NDArray[np.int64], tris_of: NDArray[np.int64],
-               window: NDArray[np.bool_], to_global: NDArray[np.int64], res: Step
-               ) -> NDArray[np.bool_]:
-    """Triangles outside the window across a rim edge that the step split."""
+def _split_rim(mesh: Mesh, start: NDArray[np.int64], tris_of: NDArray[np.int64],
+               window: NDArray[np.bool_], to_global: NDArray[np.int64], res: Step,
+               fam: Families, sch: Scheme) -> NDArray[np.bool_]:
+    """Triangles outside the window where the whole mesh's step may differ from the
+    window's: across a rim edge that the step split, and waiting transitions across a rim
+    edge from a triangle that the step changed
+    (:func:`~qdrefine.adaptive.rounds.waiting_upgrades`: the whole mesh's step upgrades
+    them, while the window's does not see them)."""
+    triangles = mesh.triangles
     rows = np.flatnonzero(window)
     t = triangles[rows].astype(np.int64)
     a, b = t.reshape(-1), np.roll(t, -1, axis=1).reshape(-1)
     keys, count = np.unique(edge_keys(a, b), return_counts=True)
     once = keys[count == 1]
-    split = once[lookup(_global_registry(res, to_global)[0], once) >= 0]
+    is_split = lookup(_global_registry(res, to_global)[0], once) >= 0
+    split = once[is_split]
     out = np.zeros(window.shape[0], dtype=bool)
     if split.size:
         _outside_across(triangles, start, tris_of, window, split // KEY, split % KEY, out)
+    if fam.n_families and sch.stencil.per_edge == 2:
+        changed = np.zeros(window.shape[0], dtype=bool)
+        changed[rows] = _changed_rows(res.parents, res.mesh.triangles, to_global, t)
+        rest = once[~is_split]
+        outside = np.full(rest.size, -1, dtype=np.int64)
+        _outside_of_changed(triangles, start, tris_of, window, changed, rest // KEY,
+                            rest % KEY, outside)
+        hit = np.flatnonzero(outside >= 0)
+        hit = hit[fam.member[outside[hit]] >= 0]
+        waiting = waiting_upgrades(mesh.points, fam, fam.member[outside[hit]], rest[hit], sch)
+        out[outside[hit[waiting]]] = True
     return out
+
+
+@njit(cache=True)
+def _changed_rows(parents, children, to_global, rows):
+    """``(W,) bool``: the window's triangles ``rows (W, 3)`` (global ids) whose output is
+    not the triangle itself; ``parents``, ``children``: the window step's output (window
+    rows, window point ids)."""
+    changed = np.ones(rows.shape[0], dtype=np.bool_)
+    count = np.zeros(rows.shape[0], dtype=np.int64)
+    for r in range(parents.shape[0]):
+        count[parents[r]] += 1
+    for r in range(parents.shape[0]):
+        p = parents[r]
+        if count[p] == 1 and to_global[children[r, 0]] == rows[p, 0] \
+                and to_global[children[r, 1]] == rows[p, 1] \
+                and to_global[children[r, 2]] == rows[p, 2]:
+            changed[p] = False
+    return changed
+
+
+@njit(cache=True)
+def _outside_of_changed(triangles, start, tris_of, window, changed, a, b, out):
+    """For each edge ``(a[e], b[e])`` of the window's rim: the triangle outside the window
+    with it, where the one inside ``changed`` (else ``out[e]`` stays -1)."""
+    for e in range(a.shape[0]):
+        inner, outer = -1, -1
+        for i in range(start[a[e]], start[a[e] + 1]):
+            t = tris_of[i]
+            for j in range(3):
+                if triangles[t, j] == b[e]:
+                    if window[t]:
+                        inner = t
+                    else:
+                        outer = t
+        if inner >= 0 and outer >= 0 and changed[inner]:
+            out[e] = outer
 
 
 @njit(cache=True)
