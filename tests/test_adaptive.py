@@ -688,9 +688,9 @@ def test_a_waiting_upgrade_across_the_rim_grows_the_window(monkeypatch):
     holds that triangle but not the transition must grow (the window's step does not see
     the transition and leaves that rim edge unsplit): the result equals the whole-mesh
     step's, with the transition upgraded. The window is forced to be everything but the
-    transition, any window must give the whole step's result."""
+    transition: any window must give the whole step's result."""
     from qdrefine.adaptive import window
-    from qdrefine.adaptive.edgekeys import edge_keys
+    from qdrefine.adaptive.edgekeys import KEY, edge_keys
     from qdrefine.adaptive.labels import canonical_labels
     from qdrefine.adaptive.rounds import waiting_upgrades
 
@@ -706,7 +706,7 @@ def test_a_waiting_upgrade_across_the_rim_grows_the_window(monkeypatch):
     assert waiting.size
     t = mesh.triangles
     f = int(waiting[0])
-    a, b = divmod(int(no[f]), 1 << 32)
+    a, b = divmod(int(no[f]), int(KEY))
     members = np.flatnonzero(fam.member == f)
     across = [u for u in np.flatnonzero((t == a).any(1) & (t == b).any(1))
               if fam.member[u] != f]
@@ -737,7 +737,11 @@ def test_a_waiting_upgrade_across_the_rim_grows_the_window(monkeypatch):
         return out
 
     monkeypatch.setattr(window, "_grown", everything_but_the_transition)
+    calls = []
+    sub_step = window._sub_step
+    monkeypatch.setattr(window, "_sub_step", lambda *a: calls.append(1) or sub_step(*a))
     windowed, p_windowed = refine_with_parents(mesh, "7t-qd", marked=marked)
+    assert first and len(calls) >= 2  # the forced window was used, then grown
     for name in ("points", "triangles", "transitions"):
         np.testing.assert_array_equal(getattr(windowed, name), getattr(whole, name),
                                       err_msg=name)

@@ -17,7 +17,7 @@ from ..schemes import Scheme, get_scheme
 from ..uniform import check_rounding
 from .families import Families
 from .history import families_of, with_history
-from .output import split_tagged, without_points
+from .output import changed_parents, split_tagged, without_points
 from .step import Step
 from .window import windowed_step
 
@@ -151,23 +151,7 @@ def _changed(before: Mesh, res: Step) -> NDArray[np.bool_]:
     output triangle that is its parent's only child with the parent's own vertex row (the
     same points: the step keeps the input's point ids) was valid before and is skipped.
     """
-    changed = np.ones(before.n_triangles, dtype=bool)
-    _mark_unchanged(res.parents, res.mesh.triangles, before.triangles,
-                    np.zeros(before.n_triangles, dtype=np.int64), changed)
-    return changed
-
-
-@njit(cache=True)
-def _mark_unchanged(parents, children, triangles, count, changed):
-    """``changed[p] = False`` for every parent ``p`` whose only child is its own row (two
-    passes over the output: counts, then the rows of the only children)."""
-    for r in range(parents.shape[0]):
-        count[parents[r]] += 1
-    for r in range(parents.shape[0]):
-        p = parents[r]
-        if count[p] == 1 and children[r, 0] == triangles[p, 0] \
-                and children[r, 1] == triangles[p, 1] and children[r, 2] == triangles[p, 2]:
-            changed[p] = False
+    return changed_parents(res.parents, res.mesh.triangles, before.triangles)
 
 
 def _check_least_memory(mesh: Mesh, plain_marked: NDArray[np.bool_], sch: Scheme,

@@ -90,10 +90,12 @@ class Families:
         """First member of each family ``(F,)``."""
         return family_spans(self.member, self.n_families)[0]
 
-    def codes(self) -> NDArray[np.int64]:
-        """Split code of each family's transition (bits ``MN=1, NO=2, OM=4``)."""
+    def codes(self, families: NDArray[np.int64] | None = None) -> NDArray[np.int64]:
+        """Split code of each family's transition ``(F,)`` (bits ``MN=1, NO=2, OM=4``), or
+        of the ``families (G,)`` given only."""
         k = self.per_edge
-        return split_codes(self.stencil[:, [3, 3 + k, 3 + 2 * k]] >= 0)
+        stencil = self.stencil if families is None else self.stencil[families]
+        return split_codes(stencil[:, [3, 3 + k, 3 + 2 * k]] >= 0)
 
     def registry(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """Split edges of the parents: sorted keys ``(R,)`` and their points ``(R, k)``,

@@ -228,3 +228,35 @@ def split_tagged(edges: NDArray, tags: NDArray, keys: NDArray[np.int64],
                                                       axis=2).reshape(-1, 2)
         e, t = out, np.repeat(t, size)
     return e, t
+
+
+def changed_parents(parents: NDArray[np.int64], children: NDArray, triangles: NDArray,
+                    to_global: NDArray[np.int64] | None = None) -> NDArray[np.bool_]:
+    """``(M,) bool``: the input triangles ``triangles (M, 3)`` whose output is not the
+    triangle itself: more than one child, or a child ``children (M', 3)`` (its parent
+    ``parents (M',)``) with another vertex row, its ids mapped by ``to_global`` if given
+    (a window's ids to the mesh's)."""
+    changed = np.ones(triangles.shape[0], dtype=bool)
+    ids = np.empty(0, dtype=np.int64) if to_global is None else to_global
+    _mark_unchanged(parents, children, triangles, ids,
+                    np.zeros(triangles.shape[0], dtype=np.int64), changed)
+    return changed
+
+
+@njit(cache=True)
+def _mark_unchanged(parents, children, triangles, to_global, count, changed):
+    """``changed[p] = False`` for every parent ``p`` whose only child is its own row (two
+    passes over the output: counts, then the rows of the only children)."""
+    for r in range(parents.shape[0]):
+        count[parents[r]] += 1
+    mapped = to_global.shape[0] > 0
+    for r in range(parents.shape[0]):
+        p = parents[r]
+        if count[p] != 1:
+            continue
+        same = True
+        for j in range(3):
+            v = to_global[children[r, j]] if mapped else children[r, j]
+            same = same and v == triangles[p, j]
+        if same:
+            changed[p] = False

@@ -1,6 +1,6 @@
 """Work proportional to the marks: a step runs on a window of the mesh around the marked
-triangles, grown until no edge on the window's rim is split, and the result is stitched
-into the untouched rest.
+triangles, grown until no edge on the window's rim is split (and no transition waiting for
+an upgrade is across it), and the result is stitched into the untouched rest.
 
 The step's decisions are local (closure along split edges, patterns by a triangle's own
 shape), so on a window whose rim keeps all its edges unsplit the step does exactly what it
@@ -12,8 +12,9 @@ order too, and the stitched result is identical to the whole-mesh step (tested).
 window starts from an estimate of what the step reaches (:mod:`~qdrefine.adaptive.reach`)
 on a mesh without transitions, from two vertex rings around the marks otherwise. The only
 passes over the whole mesh are linear: the vertex-to-triangle table, the estimate's flags
-(a few passes over ``(M,)`` arrays), the rings (by vertex flags) and the copy of the
-untouched triangles.
+(a few passes over ``(M,)`` arrays), the rings (by vertex flags), a changed flag per
+triangle for the rim check on a mesh with transitions, and the copy of the untouched
+triangles.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from ..numbering import incidence
 from ..schemes import Scheme
 from .edgekeys import KEY, edge_keys, lookup
 from .families import Families, family_spans
+from .output import changed_parents
 from .reach import reached_triangles
 from .rounds import waiting_upgrades
 from .step import Step, step
@@ -68,7 +70,7 @@ def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.
         res, verts = _sub_step(mesh, window, marked, fam_marked, sch, fam, verdicts)
         to_global = np.concatenate([verts, mesh.n_points
                                     + np.arange(res.mesh.n_points - verts.size)])
-        rim = _split_rim(mesh, start, tris_of, window, to_global, res, fam, sch)
+        rim = _rim_to_grow(mesh, start, tris_of, window, to_global, res, fam, sch)
         if not rim.any():
             return _stitched(mesh, window, verts, to_global, res, fam)
         window |= _grown(mesh.triangles, mesh.n_points, rim, 2)
@@ -142,7 +144,7 @@ def _sub_step(mesh: Mesh, window: NDArray[np.bool_], marked: NDArray[np.bool_],
     return step(sub, marked[rows], fam_marked[used], sch, sub_fam, known), verts
 
 
-def _split_rim(mesh: Mesh, start: NDArray[np.int64], tris_of: NDArray[np.int64],
+def _rim_to_grow(mesh: Mesh, start: NDArray[np.int64], tris_of: NDArray[np.int64],
                window: NDArray[np.bool_], to_global: NDArray[np.int64], res: Step,
                fam: Families, sch: Scheme) -> NDArray[np.bool_]:
     """Triangles outside the window where the whole mesh's step may differ from the
@@ -163,40 +165,24 @@ def _split_rim(mesh: Mesh, start: NDArray[np.int64], tris_of: NDArray[np.int64],
         _outside_across(triangles, start, tris_of, window, split // KEY, split % KEY, out)
     if fam.n_families and sch.stencil.per_edge == 2:
         changed = np.zeros(window.shape[0], dtype=bool)
-        changed[rows] = _changed_rows(res.parents, res.mesh.triangles, to_global, t)
-        rest = once[~is_split]
-        outside = np.full(rest.size, -1, dtype=np.int64)
-        _outside_of_changed(triangles, start, tris_of, window, changed, rest // KEY,
-                            rest % KEY, outside)
+        changed[rows] = changed_parents(res.parents, res.mesh.triangles, t, to_global)
+        unsplit = once[~is_split]
+        outside = np.full(unsplit.size, -1, dtype=np.int64)
+        _outside_of_changed(triangles, start, tris_of, window, changed, unsplit // KEY,
+                            unsplit % KEY, outside)
         hit = np.flatnonzero(outside >= 0)
         hit = hit[fam.member[outside[hit]] >= 0]
-        waiting = waiting_upgrades(mesh.points, fam, fam.member[outside[hit]], rest[hit], sch)
+        waiting = waiting_upgrades(mesh.points, fam, fam.member[outside[hit]], unsplit[hit],
+                                   sch)
         out[outside[hit[waiting]]] = True
     return out
 
 
 @njit(cache=True)
-def _changed_rows(parents, children, to_global, rows):
-    """``(W,) bool``: the window's triangles ``rows (W, 3)`` (global ids) whose output is
-    not the triangle itself; ``parents``, ``children``: the window step's output (window
-    rows, window point ids)."""
-    changed = np.ones(rows.shape[0], dtype=np.bool_)
-    count = np.zeros(rows.shape[0], dtype=np.int64)
-    for r in range(parents.shape[0]):
-        count[parents[r]] += 1
-    for r in range(parents.shape[0]):
-        p = parents[r]
-        if count[p] == 1 and to_global[children[r, 0]] == rows[p, 0] \
-                and to_global[children[r, 1]] == rows[p, 1] \
-                and to_global[children[r, 2]] == rows[p, 2]:
-            changed[p] = False
-    return changed
-
-
-@njit(cache=True)
 def _outside_of_changed(triangles, start, tris_of, window, changed, a, b, out):
-    """For each edge ``(a[e], b[e])`` of the window's rim: the triangle outside the window
-    with it, where the one inside ``changed`` (else ``out[e]`` stays -1)."""
+    """``out (E,) int64``: for each rim edge ``(a[e], b[e])`` (``a, b (E,)``), the triangle
+    outside the window with that edge where the one inside has changed (``changed (M,)``);
+    ``out[e]`` stays -1 otherwise."""
     for e in range(a.shape[0]):
         inner, outer = -1, -1
         for i in range(start[a[e]], start[a[e] + 1]):
@@ -213,6 +199,8 @@ def _outside_of_changed(triangles, start, tris_of, window, changed, a, b, out):
 
 @njit(cache=True)
 def _outside_across(triangles, start, tris_of, window, a, b, out):
+    """``out[t] = True`` for each triangle ``t`` outside the window with an edge
+    ``(a[e], b[e])`` (``a, b (E,)``, ``out (M,) bool``)."""
     for e in range(a.shape[0]):
         for i in range(start[a[e]], start[a[e] + 1]):
             t = tris_of[i]
