@@ -70,9 +70,11 @@ def windowed_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.
         res, verts = _sub_step(mesh, window, marked, fam_marked, sch, fam, verdicts)
         to_global = np.concatenate([verts, mesh.n_points
                                     + np.arange(res.mesh.n_points - verts.size)])
-        rim = _rim_to_grow(mesh, start, tris_of, window, to_global, res, fam, sch)
+        registry = _global_registry(res, to_global)
+        rim = _rim_to_grow(mesh, start, tris_of, window, registry[0], to_global, res, fam,
+                           sch)
         if not rim.any():
-            return _stitched(mesh, window, verts, to_global, res, fam)
+            return _stitched(mesh, window, verts, to_global, res, fam, registry)
         window |= _grown(mesh.triangles, mesh.n_points, rim, 2)
 
 
@@ -145,76 +147,60 @@ def _sub_step(mesh: Mesh, window: NDArray[np.bool_], marked: NDArray[np.bool_],
 
 
 def _rim_to_grow(mesh: Mesh, start: NDArray[np.int64], tris_of: NDArray[np.int64],
-               window: NDArray[np.bool_], to_global: NDArray[np.int64], res: Step,
-               fam: Families, sch: Scheme) -> NDArray[np.bool_]:
+                 window: NDArray[np.bool_], split_keys: NDArray[np.int64],
+                 to_global: NDArray[np.int64], res: Step, fam: Families, sch: Scheme
+                 ) -> NDArray[np.bool_]:
     """Triangles outside the window where the whole mesh's step may differ from the
-    window's: across a rim edge that the step split, and waiting transitions across a rim
-    edge from a triangle that the step changed
-    (:func:`~qdrefine.adaptive.rounds.waiting_upgrades`: the whole mesh's step upgrades
-    them, while the window's does not see them)."""
+    window's: across a rim edge that the step split (its split edges' keys ``split_keys``,
+    sorted, in global ids), and waiting transitions across a rim edge from a triangle that
+    the step changed (:func:`~qdrefine.adaptive.rounds.waiting_upgrades`: the whole mesh's
+    step upgrades them, while the window's does not see them)."""
     triangles = mesh.triangles
     rows = np.flatnonzero(window)
     t = triangles[rows].astype(np.int64)
     a, b = t.reshape(-1), np.roll(t, -1, axis=1).reshape(-1)
     keys, count = np.unique(edge_keys(a, b), return_counts=True)
     once = keys[count == 1]
-    is_split = lookup(_global_registry(res, to_global)[0], once) >= 0
-    split = once[is_split]
+    inner = np.full(once.size, -1, dtype=np.int64)
+    outer = np.full(once.size, -1, dtype=np.int64)
+    _rim_sides(triangles, start, tris_of, window, once // KEY, once % KEY, inner, outer)
+    across = outer >= 0  # not on the mesh's boundary
+    is_split = lookup(split_keys, once) >= 0
     out = np.zeros(window.shape[0], dtype=bool)
-    if split.size:
-        _outside_across(triangles, start, tris_of, window, split // KEY, split % KEY, out)
+    out[outer[across & is_split]] = True
     if fam.n_families and sch.stencil.per_edge == 2:
         changed = np.zeros(window.shape[0], dtype=bool)
         changed[rows] = changed_parents(res.parents, res.mesh.triangles, t, to_global)
-        unsplit = once[~is_split]
-        outside = np.full(unsplit.size, -1, dtype=np.int64)
-        _outside_of_changed(triangles, start, tris_of, window, changed, unsplit // KEY,
-                            unsplit % KEY, outside)
-        hit = np.flatnonzero(outside >= 0)
-        hit = hit[fam.member[outside[hit]] >= 0]
-        waiting = waiting_upgrades(mesh.points, fam, fam.member[outside[hit]], unsplit[hit],
-                                   sch)
-        out[outside[hit[waiting]]] = True
+        cand = across & ~is_split
+        cand[cand] = changed[inner[cand]] & (fam.member[outer[cand]] >= 0)
+        idx = np.flatnonzero(cand)
+        waiting = waiting_upgrades(mesh.points, fam, fam.member[outer[idx]], once[idx], sch)
+        out[outer[idx[waiting]]] = True
     return out
 
 
 @njit(cache=True)
-def _outside_of_changed(triangles, start, tris_of, window, changed, a, b, out):
-    """``out (E,) int64``: for each rim edge ``(a[e], b[e])`` (``a, b (E,)``), the triangle
-    outside the window with that edge where the one inside has changed (``changed (M,)``);
-    ``out[e]`` stays -1 otherwise."""
+def _rim_sides(triangles, start, tris_of, window, a, b, inner, outer):
+    """For each rim edge ``(a[e], b[e])`` (``a, b (E,)``): the triangle inside the window
+    with that edge into ``inner (E,)`` and the one outside into ``outer (E,)`` (both come
+    in -1; ``outer[e]`` stays -1 on the mesh's boundary)."""
     for e in range(a.shape[0]):
-        inner, outer = -1, -1
         for i in range(start[a[e]], start[a[e] + 1]):
             t = tris_of[i]
             for j in range(3):
                 if triangles[t, j] == b[e]:
                     if window[t]:
-                        inner = t
+                        inner[e] = t
                     else:
-                        outer = t
-        if inner >= 0 and outer >= 0 and changed[inner]:
-            out[e] = outer
-
-
-@njit(cache=True)
-def _outside_across(triangles, start, tris_of, window, a, b, out):
-    """``out[t] = True`` for each triangle ``t`` outside the window with an edge
-    ``(a[e], b[e])`` (``a, b (E,)``, ``out (M,) bool``)."""
-    for e in range(a.shape[0]):
-        for i in range(start[a[e]], start[a[e] + 1]):
-            t = tris_of[i]
-            if window[t]:
-                continue
-            for j in range(3):
-                if triangles[t, j] == b[e]:
-                    out[t] = True
+                        outer[e] = t
 
 
 def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
-              to_global: NDArray[np.int64], res: Step, fam: Families) -> Step:
+              to_global: NDArray[np.int64], res: Step, fam: Families,
+              registry: tuple[NDArray[np.int64], NDArray[np.int64]]) -> Step:
     """The whole mesh's step from the window's: untouched triangles copied, the window's
-    output in their place (input order), its new points after the mesh's points."""
+    output in their place (input order), its new points after the mesh's points;
+    ``registry``: the window's split edges in global ids (:func:`_global_registry`)."""
     sub = res.mesh
     n_sub = verts.size
     rows = np.flatnonzero(window)
@@ -273,8 +259,7 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     families = Families(member, rows_all[order], sten_all[order])
     inside = np.zeros(total, dtype=bool)
     inside[out_rows] = res.inside
-    return Step(out, parents, families, inside, to_global[res.centroids],
-                *_global_registry(res, to_global))
+    return Step(out, parents, families, inside, to_global[res.centroids], *registry)
 
 
 @njit(parallel=True, cache=True)
