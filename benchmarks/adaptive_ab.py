@@ -4,9 +4,11 @@ the same machine (the only fair comparison on a machine whose speed drifts).
 The mesh and marks are those of ``adaptive_bench.py`` (864k-triangle Gmsh L-shape; 1% of
 the triangles marked, clustered at the re-entrant corner or scattered at random). Each
 process times, best of 5: one uniform 7T-QD level, the clustered step and the scattered
-step. Usage (a second source tree, e.g. ``git worktree add /tmp/old REV``)::
+step; with ``--second``, best of 3, also the scattered second cycle (1% scattered marks
+again on the scattered step's output, which carries its transitions) and a uniform level
+of that mesh. Usage (a second source tree, e.g. ``git worktree add /tmp/old REV``)::
 
-    python benchmarks/adaptive_ab.py /tmp/old/src [--rounds 2] [--json FILE]
+    python benchmarks/adaptive_ab.py /tmp/old/src [--rounds 2] [--second] [--json FILE]
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from pathlib import Path
 HERE = Path(__file__).parent
 
 
-def measure() -> dict:
+def measure(second: bool = False) -> dict:
     sys.path.insert(0, str(HERE))
     import numpy as np
     from adaptive_bench import big_l_shape
@@ -52,6 +54,11 @@ def measure() -> dict:
            "uniform_s": best(lambda: qdrefine.refine(mesh, "7t-qd"))}
     for name, marked in marks.items():
         row[f"{name}_s"] = best(lambda m=marked: qdrefine.refine(mesh, "7t-qd", marked=m))
+    if second:
+        first = qdrefine.refine(mesh, "7t-qd", marked=marks["scattered"])
+        again = mark_random(first, 0.01, seed=1)
+        row["second_uniform_s"] = best(lambda: qdrefine.refine(first, "7t-qd"), 3)
+        row["second_cycle_s"] = best(lambda: qdrefine.refine(first, "7t-qd", marked=again), 3)
     return row
 
 
@@ -60,10 +67,12 @@ def main(argv=None) -> None:
     parser.add_argument("other", help="the other version's source folder (holds qdrefine/)")
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--second", action="store_true",
+                        help="also time the scattered second cycle (about a minute more)")
     parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.measure:
-        print(json.dumps(measure()))
+        print(json.dumps(measure(args.second)))
         return
     rows = []
     for _ in range(args.rounds):
@@ -71,7 +80,8 @@ def main(argv=None) -> None:
             env = dict(os.environ)
             if src is not None:
                 env["PYTHONPATH"] = str(Path(src).resolve())
-            out = subprocess.run([sys.executable, __file__, args.other, "--measure"],
+            flags = ["--measure"] + (["--second"] if args.second else [])
+            out = subprocess.run([sys.executable, __file__, args.other, *flags],
                                  env=env, capture_output=True, text=True, check=True)
             rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
             print(rows[-1])

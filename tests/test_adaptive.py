@@ -850,3 +850,36 @@ def test_pattern_writes_the_same_children_into_given_rows(k):
         pattern(ids, labels, k, code, choice, out, rows)
         np.testing.assert_array_equal(out[3:3 + n.sum()], kids)
         assert (out[:3] == -9).all() and (out[3 + n.sum():] == -9).all()
+
+
+@pytest.mark.parametrize("name, scheme", [("l_shape", "7t-qd"), ("boundary_layer", "7t-qd"),
+                                          ("plate_with_hole", "7t-le"), ("step", "4t-le")])
+def test_an_advanced_round_numbers_the_working_mesh_as_from_scratch(name, scheme,
+                                                                    monkeypatch):
+    """After an expansion the next round advances the previous numbering
+    (``plan.advanced``) instead of numbering the working mesh again: on cycles with
+    history (random marks, their transitions' families coarsened and refined again) every
+    array, the edges' incidence included, equals ``plan.working_edges`` of the same tree,
+    and advanced rounds really ran."""
+    from qdrefine.adaptive import plan, rounds
+
+    checked = []
+    advanced = plan.advanced
+
+    def checking(tree, cl, own, kids):
+        got, expected = advanced(tree, cl, own, kids), plan.working_edges(tree)
+        for field in ("leaves", "triangles", "edges", "tri_edges", "counts", "keys", "pos",
+                      "labels", "ce", "split"):
+            a, b = getattr(got, field), getattr(expected, field)
+            assert a.dtype == b.dtype, field
+            np.testing.assert_array_equal(a, b, err_msg=field)
+        for a, b in zip(got.around, expected.around, strict=True):
+            np.testing.assert_array_equal(a, b)
+        checked.append(int(own.sum()))
+        return got
+
+    monkeypatch.setattr(rounds, "advanced", checking)
+    mesh = examples.gmsh_mesh(name)
+    for cycle in range(4):
+        mesh = refine(mesh, scheme, marked=marking.mark_random(mesh, 0.15, seed=cycle))
+    assert len(checked) >= 3 and sum(checked) > 0

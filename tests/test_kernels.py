@@ -242,13 +242,36 @@ def test_number_edges_matches_np_unique(n_points, m, fan, seed, n_chunks, shift,
     rng = np.random.default_rng(seed)
     tri = triangle_soup(rng, n_points, m, fan if n_points > fan + 2 else 0).astype(dtype)
     expected = edges_oracle(tri)
-    buckets = sort_edges(tri, n_points, n_chunks, shift)
+    buckets = sort_edges(tri, n_points, n_chunks, shift, with_rows=True)
     edges, counts = buckets.edges()
     got = (edges, buckets.global_ids(tri), counts)
     for g, e in zip(got, expected, strict=True):
         np.testing.assert_array_equal(g, e)
     assert got[0].dtype == dtype and got[1].dtype == np.int64 and got[2].dtype == np.int64
     assert buckets.local.dtype == np.int32
+    # the triangles around each edge, read off the sort: a stable argsort of the global
+    # ids (the oracle) lists them edge by edge, in increasing order around each edge
+    np.testing.assert_array_equal(buckets.rows,
+                                  np.argsort(expected[1].reshape(-1), kind="stable") // 3)
+
+
+def test_number_edges_around_is_number_edges_and_incidence():
+    """:func:`number_edges_around` equals :func:`number_edges` plus :func:`incidence` of
+    the edge ids, on a shuffled mesh large enough for the parallel paths; without
+    ``with_rows`` the buckets hold no rows."""
+    from qdrefine.jit import PARALLEL_MIN
+    from qdrefine.numbering import incidence, number_edges_around
+
+    mesh = jittered_grid(int((PARALLEL_MIN / 2) ** 0.5) + 20, seed=5)
+    rng = np.random.default_rng(5)
+    tri = mesh.triangles[rng.permutation(mesh.n_triangles)]
+    edges, tri_edges, counts, (start, rows) = number_edges_around(tri, mesh.n_points)
+    for g, e in zip((edges, tri_edges, counts), number_edges(tri, mesh.n_points), strict=True):
+        np.testing.assert_array_equal(g, e)
+    s, r = incidence(tri_edges, edges.shape[0])
+    np.testing.assert_array_equal(start, s)
+    np.testing.assert_array_equal(rows, r)
+    assert sort_edges(tri, mesh.n_points).rows is None
 
 
 @pytest.mark.parametrize("scheme", ["7t-qd", "4t-red"])

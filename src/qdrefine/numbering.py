@@ -16,7 +16,10 @@ Ids depend on the vertex numbering only, never on the triangle order, the number
 or of chunks: a bucket's sorted content does not depend on the order its slots were filled.
 Uniform refinement (:mod:`qdrefine.refine`) stops there: the new points are written per
 bucket (:func:`bucket_points`) and emission adds ``first`` itself, so neither the edge list
-nor global ids per half-edge are ever materialized. :func:`number_edges` builds both.
+nor global ids per half-edge are ever materialized. :func:`number_edges` builds both,
+:func:`number_edges_around` also the triangles around each edge.
+
+One concern: numbering the edges of a triangle list (and the incidence tables read off it).
 """
 
 from __future__ import annotations
@@ -30,8 +33,8 @@ from numpy.typing import NDArray
 
 from .jit import AHEAD, PARALLEL_MIN, prefetch, prefetch_write, threads_for, unsigned
 
-__all__ = ["EdgeBuckets", "sort_edges", "number_edges", "bucket_points", "edge_point", "edge_ids",
-           "index_dtype", "incidence"]
+__all__ = ["EdgeBuckets", "sort_edges", "number_edges", "number_edges_around", "bucket_points",
+           "edge_point", "edge_ids", "index_dtype", "incidence"]
 
 
 def index_dtype(n_points: int) -> type[np.integer]:
@@ -57,6 +60,11 @@ class EdgeBuckets:
     local : (M, 3) int32 or int64
         Id within its bucket of edge ``(v_i, v_{i+1})`` of every triangle (``int32`` while
         ``3 M`` fits).
+    rows : (3 M,) int64 or None
+        With ``sort_edges(..., with_rows=True)``: the triangles around every edge, edge by
+        edge in id order and in increasing order around each edge (the rows of
+        :func:`incidence` of the global ids); edge ``g`` has ``mult`` of them, so its first
+        one is at the prefix sum of the multiplicities before ``g``.
     """
 
     shift: int
@@ -66,6 +74,7 @@ class EdgeBuckets:
     hi: NDArray[np.integer]
     mult: NDArray[np.integer]
     local: NDArray[np.integer]
+    rows: NDArray[np.int64] | None = None
 
     @property
     def n_edges(self) -> int:
@@ -107,10 +116,29 @@ def number_edges(triangles: NDArray[np.integer], n_points: int
     return edges, buckets.global_ids(tri), counts
 
 
+def number_edges_around(triangles: NDArray[np.integer], n_points: int
+                        ) -> tuple[NDArray[np.integer], NDArray[np.int64], NDArray[np.int64],
+                                   tuple[NDArray[np.int64], NDArray[np.int64]]]:
+    """:func:`number_edges` and the triangles around every edge, ``(start, rows)``: equal
+    to :func:`incidence` of ``tri_edges`` (CSR, ``(E + 1,)`` and ``(3 M,)`` int64, in
+    increasing order around each edge), read off the sort instead of a second counting
+    sort (3 M random writes: 35-65 ms at a million triangles)."""
+    tri = _as_index_array(triangles)
+    if tri.size and (tri.min() < 0 or tri.max() >= n_points):
+        raise ValueError(f"number_edges: vertex indices must be in [0, {n_points}), got "
+                         f"[{tri.min()}, {tri.max()}]")
+    buckets = sort_edges(tri, n_points, with_rows=True)
+    edges, counts = buckets.edges()
+    start = np.zeros(counts.shape[0] + 1, dtype=np.int64)
+    np.cumsum(counts, out=start[1:])
+    return edges, buckets.global_ids(tri), counts, (start, buckets.rows)
+
+
 def sort_edges(triangles: NDArray[np.integer], n_points: int, n_chunks: int | None = None,
-               shift: int | None = None) -> EdgeBuckets:
+               shift: int | None = None, with_rows: bool = False) -> EdgeBuckets:
     """Steps 1 and 2 of the module docstring for ``triangles (M, 3)``; ``n_chunks`` and
-    ``shift`` (default: by size) change the work split, never the result.
+    ``shift`` (default: by size) change the work split, never the result. ``with_rows``:
+    also the triangles around every edge (:attr:`EdgeBuckets.rows`).
 
     Indices must be in ``[0, n_points)`` (not checked here: :func:`qdrefine.refine` passes a
     validated :class:`~qdrefine.Mesh`; :func:`number_edges` checks)."""
@@ -133,10 +161,12 @@ def sort_edges(triangles: NDArray[np.integer], n_points: int, n_chunks: int | No
         _scatter(tri, shift, offsets, lo, hi, slot)
         local = np.empty((m, 3), dtype=small)
         n_unique = np.empty(n_buckets, dtype=np.int64)
-        _sort_buckets(starts, shift, lo, hi, slot, local.reshape(-1), n_unique)
+        # None compiles a version without the rows (numba prunes the branch on the type)
+        rows = np.empty(3 * m, dtype=np.int64) if with_rows else None
+        _sort_buckets(starts, shift, lo, hi, slot, local.reshape(-1), n_unique, rows)
     first = np.zeros(n_buckets + 1, dtype=np.int64)
     np.cumsum(n_unique, out=first[1:])
-    return EdgeBuckets(shift, starts, first, lo, hi, slot, local)
+    return EdgeBuckets(shift, starts, first, lo, hi, slot, local, rows)
 
 
 def bucket_points(points: NDArray[np.float64], buckets: EdgeBuckets, per_edge: int,
@@ -213,10 +243,13 @@ def _scatter(tri, shift, offsets, lo, hi, slot):
 
 
 @njit(parallel=True, cache=True)
-def _sort_buckets(starts, shift, lo, hi, slot, local, n_unique):
+def _sort_buckets(starts, shift, lo, hi, slot, local, n_unique, rows):
     """Sort every bucket's half-edges by ``(lo, hi)``; give each its edge's id within the
     bucket (``local``, a scatter by half-edge index) and write the bucket's distinct edges
-    to the front of its slots (``lo``, ``hi``, and their multiplicity over ``slot``).
+    to the front of its slots (``lo``, ``hi``, and their multiplicity over ``slot``); if
+    ``rows`` is not None, the triangle of every sorted half-edge to ``rows`` (the buckets'
+    slots are the edges' incidence ranges: every sort here is stable, so the half-edges of
+    one edge stay in increasing order).
 
     A counting sort by ``lo`` into bucket-local buffers, then an insertion sort of each
     vertex's few ``hi`` values (an argsort for long runs at high-degree vertices).
@@ -265,6 +298,8 @@ def _sort_buckets(starts, shift, lo, hi, slot, local, n_unique):
                     slot[s + u] = 0
                 slot[s + u] += 1
                 local[unsigned(ts[q])] = u
+                if rows is not None:
+                    rows[s + q] = ts[q] // 3
             q0 = q1
         n_unique[b] = u + 1
 

@@ -30,15 +30,9 @@ from .families import Families
 from .history import families_of, with_history
 from .longest_edge import closure
 from .output import emit_step, without_points
+from .plan import SplitPlan, working_edges
 from .red_families import red_families
-from .rounds import (
-    UPGRADE_LAYERS,
-    SplitPlan,
-    Upgrades,
-    conflicts,
-    one_sided_pieces,
-    working_edges,
-)
+from .rounds import UPGRADE_LAYERS, Upgrades, conflicts, one_sided_pieces
 from .working import Tree, start, working_rows
 
 
@@ -183,7 +177,7 @@ def _coarse_plan(tree: Tree, upgrades: Upgrades) -> SplitPlan:
     n_edges = cl.edges.shape[0]
     cl.split, _ = closure(ce, np.zeros(leaves.size, dtype=bool), n_edges, presplit=hanging,
                           upgrade=upgrade, layers=UPGRADE_LAYERS,
-                          earlier=np.zeros(n_edges, dtype=bool))
+                          earlier=np.zeros(n_edges, dtype=bool), around=cl.around)
     return cl
 
 

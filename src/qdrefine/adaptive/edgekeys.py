@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
+
+from ..jit import threads_for
 
 #: Edge key ``min * KEY + max`` of an edge between two point ids (ids below ``2**31``).
 KEY = np.int64(1) << np.int64(32)
@@ -17,12 +19,49 @@ def edge_keys(a: ArrayLike, b: ArrayLike) -> NDArray[np.int64]:
     return np.minimum(a, b) * KEY + np.maximum(a, b)
 
 
+def edge_keys_of_rows(edges: NDArray) -> NDArray[np.int64]:
+    """:func:`edge_keys` of the rows of ``edges (E, 2)`` (one compiled parallel pass)."""
+    out = np.empty(edges.shape[0], dtype=np.int64)
+    with threads_for(edges.shape[0]):
+        _row_keys(np.ascontiguousarray(edges), out)
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _row_keys(edges, out):
+    for i in prange(edges.shape[0]):
+        a = np.int64(edges[i, 0])
+        b = np.int64(edges[i, 1])
+        out[i] = min(a, b) * KEY + max(a, b)
+
+
 def lookup(keys: NDArray[np.int64], query: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Position of each query in the sorted ``keys``, ``-1`` where absent."""
+    """Position of each query in the sorted ``keys``, ``-1`` where absent (a binary search
+    per query, in parallel)."""
+    query = np.asarray(query, dtype=np.int64)
+    out = np.empty(query.shape, dtype=np.int64)
     if keys.size == 0:
-        return np.full(query.shape, -1, dtype=np.int64)
-    pos = np.minimum(np.searchsorted(keys, query), keys.size - 1)
-    return np.where(keys[pos] == query, pos, -1)
+        out[...] = -1
+        return out
+    flat = np.ascontiguousarray(query).reshape(-1)
+    with threads_for(flat.shape[0]):
+        _binary_lookup(keys, flat, out.reshape(-1))
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _binary_lookup(keys, query, out):
+    n = keys.shape[0]
+    for i in prange(query.shape[0]):
+        q = query[i]
+        lo, hi = 0, n
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if keys[mid] < q:
+                lo = mid + 1
+            else:
+                hi = mid
+        out[i] = lo if lo < n and keys[lo] == q else -1
 
 
 def lookup_sorted(keys: NDArray[np.int64], query: NDArray[np.int64]) -> NDArray[np.int64]:

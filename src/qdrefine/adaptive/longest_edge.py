@@ -16,7 +16,8 @@ from .labels import MN, OM
 def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
             presplit: NDArray[np.bool_] | None = None,
             upgrade: Callable[[NDArray[np.int64], NDArray[np.int64]], NDArray[np.bool_]]
-            | None = None, layers: int = 1, earlier: NDArray[np.bool_] | None = None
+            | None = None, layers: int = 1, earlier: NDArray[np.bool_] | None = None,
+            around: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
             ) -> tuple[NDArray[np.bool_], int]:
     """Split edges: all edges of marked triangles, closed under the longest-edge rule
     (and the upgrade rule, if given).
@@ -44,6 +45,10 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
         triangle across ``NO`` is refined already (or there is none). So upgrades cannot
         cascade through a mesh (a boundary layer of thin right triangles, where every
         transition wants one).
+    around : ((E + 1,), (3 M,)) int64, optional
+        The triangles around every edge, :func:`edge_triangles` of ``cedges`` (e.g. read
+        off the edge numbering, :func:`~qdrefine.numbering.number_edges_around`);
+        computed if not given.
 
     Returns
     -------
@@ -57,7 +62,8 @@ def closure(cedges: NDArray[np.int64], marked: NDArray[np.bool_], n_edges: int,
     """
     split = np.zeros(n_edges, dtype=bool) if presplit is None else presplit.copy()
     split[cedges[marked].ravel()] = True
-    around = edge_triangles(cedges, n_edges)
+    if around is None:
+        around = edge_triangles(cedges, n_edges)
     rounds = _propagate(split, cedges, np.flatnonzero(touching(split, cedges)), around)
     if upgrade is None:
         return split, rounds
@@ -96,7 +102,20 @@ def _closure_of_marks(split: NDArray[np.bool_], presplit: NDArray[np.bool_],
     outside it (otherwise every earlier transition of the mesh could be upgraded in every
     step, however far from the marks, and a step on a window around the marks would differ
     from the step on the whole mesh)."""
-    return touching(split & ~presplit, cedges) | marked
+    out = np.empty(cedges.shape[0], dtype=np.bool_)
+    with threads_for(cedges.shape[0]):
+        _reached_into(split, presplit, cedges, marked, out)
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _reached_into(split, presplit, cedges, marked, out):
+    for t in prange(cedges.shape[0]):
+        hit = marked[t]
+        for i in range(3):
+            e = cedges[t, i]
+            hit = hit or (split[e] and not presplit[e])
+        out[t] = hit
 
 
 @njit(parallel=True, cache=True)
@@ -113,23 +132,49 @@ def touching(split: NDArray[np.bool_], cedges: NDArray[np.int64]) -> NDArray[np.
     return out
 
 
-@njit(cache=True)
-def _candidates(split, cedges):
+def _candidates(split: NDArray[np.bool_], cedges: NDArray[np.int64]
+                ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Triangles with a split edge and ``NO`` unsplit (with the closure: ``MN`` split), in
-    order, and their split codes (bits ``MN=1, NO=2, OM=4``)."""
-    n = 0
-    for t in range(cedges.shape[0]):
-        if not split[cedges[t, 1]] and (split[cedges[t, 0]] or split[cedges[t, 2]]):
-            n += 1
-    cand = np.empty(n, dtype=np.int64)
-    codes = np.empty(n, dtype=np.int64)
-    j = 0
-    for t in range(cedges.shape[0]):
-        if not split[cedges[t, 1]] and (split[cedges[t, 0]] or split[cedges[t, 2]]):
-            cand[j] = t
-            codes[j] = (MN if split[cedges[t, 0]] else 0) + (OM if split[cedges[t, 2]] else 0)
-            j += 1
+    order, and their split codes (bits ``MN=1, NO=2, OM=4``): counted per block of
+    triangles, then written from each block's offset (in parallel, the same order)."""
+    m = cedges.shape[0]
+    blocks = max(1, min(64, m // 16384))
+    bounds = np.linspace(0, m, blocks + 1).astype(np.int64)
+    counts = np.zeros(blocks + 1, dtype=np.int64)
+    with threads_for(m):
+        _count_candidates(split, cedges, bounds, counts)
+        np.cumsum(counts, out=counts)
+        cand = np.empty(counts[-1], dtype=np.int64)
+        codes = np.empty(counts[-1], dtype=np.int64)
+        _fill_candidates(split, cedges, bounds, counts, cand, codes)
     return cand, codes
+
+
+@njit(inline="always", cache=True)
+def _is_candidate(split, cedges, t):
+    return not split[cedges[t, 1]] and (split[cedges[t, 0]] or split[cedges[t, 2]])
+
+
+@njit(parallel=True, cache=True)
+def _count_candidates(split, cedges, bounds, counts):
+    """``counts[c + 1]``: candidates among triangles ``bounds[c] .. bounds[c + 1] - 1``."""
+    for c in prange(bounds.shape[0] - 1):
+        n = 0
+        for t in range(bounds[c], bounds[c + 1]):
+            if _is_candidate(split, cedges, t):
+                n += 1
+        counts[c + 1] = n
+
+
+@njit(parallel=True, cache=True)
+def _fill_candidates(split, cedges, bounds, offsets, cand, codes):
+    for c in prange(bounds.shape[0] - 1):
+        j = offsets[c]
+        for t in range(bounds[c], bounds[c + 1]):
+            if _is_candidate(split, cedges, t):
+                cand[j] = t
+                codes[j] = (MN if split[cedges[t, 0]] else 0) + (OM if split[cedges[t, 2]] else 0)
+                j += 1
 
 
 @njit(cache=True)

@@ -22,7 +22,8 @@ from .patterns import (
     tables,
     uses_centroid,
 )
-from .rounds import SplitPlan, new_points, unchanged
+from .plan import SplitPlan
+from .rounds import new_points, unchanged
 from .working import StepInput, Tree, emit_full
 
 

@@ -5,75 +5,37 @@ changes."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..kernels import number_edges
-from ..mesh import index_dtype
 from ..partition import partition_many
 from ..schemes import Scheme
 from .edgekeys import edge_keys, lookup, lookup_sorted
 from .families import Families
-from .labels import MN, NO, OM, canonical_edges, canonical_labels, edge_split_codes
+from .labels import MN, NO, OM, canonical_labels
 from .longest_edge import closure, touching
 from .patterns import canonical_corners, min_angles, quality, stencil_coordinates
+from .plan import SplitPlan, advanced, working_edges
 from .working import StepInput, Tree, expand, with_edge_points
 
 
-@dataclass
-class SplitPlan:
-    """The working mesh's edges and which of them get points: the longest-edge closure
-    (:func:`~qdrefine.adaptive.longest_edge.closure`) of its marks, made by
-    :func:`plan_splits`."""
-
-    leaves: NDArray[np.int64]  # tree node of each working triangle
-    triangles: NDArray[np.int64]  # (W, 3) their vertex rows
-    edges: NDArray
-    tri_edges: NDArray[np.int64]
-    counts: NDArray[np.int64]
-    keys: NDArray[np.int64]
-    pos: NDArray[np.int64]  # registry position of each edge, -1 if it has no points yet
-    labels: NDArray[np.int8]
-    ce: NDArray[np.int64]
-    split: NDArray[np.bool_]
-
-    @property
-    def pre(self) -> NDArray[np.bool_]:
-        return self.pos >= 0
-
-    def codes(self) -> NDArray[np.int64]:
-        """Split code of each working triangle."""
-        return edge_split_codes(self.split, self.ce)
-
-
-def working_edges(tree: Tree) -> SplitPlan:
-    """The working mesh's leaves, numbered edges (in sorted order), their registry
-    positions and canonical edges; no edge split yet."""
-    leaves = tree.leaves()
-    # 32-bit ids where they fit: the edge numbering sorts about 20% faster
-    triangles = tree.triangles[leaves].astype(index_dtype(tree.points.shape[0]), copy=False)
-    edges, tri_edges, counts = number_edges(triangles, tree.points.shape[0])
-    keys = edge_keys(edges[:, 0], edges[:, 1])
-    pos = lookup_sorted(tree.reg_keys, keys)  # edges are numbered in sorted order
-    labels = tree.labels[leaves]
-    ce = canonical_edges(labels, tri_edges)
-    return SplitPlan(leaves, triangles, edges, tri_edges, counts, keys, pos, labels, ce,
-                     np.zeros(edges.shape[0], dtype=bool))
-
-
 def plan_splits(tree: Tree, upgrades: Callable[[NDArray[np.int64], NDArray[np.int64]],
-                                               NDArray[np.bool_]] | None = None) -> SplitPlan:
+                                               NDArray[np.bool_]] | None = None,
+                after: tuple[SplitPlan, NDArray[np.bool_], NDArray[np.int64]] | None = None
+                ) -> SplitPlan:
     """Edges of the working mesh and the closure of its marks (pre-split edges included),
     with ``upgrades(nodes, codes)`` (e.g. :class:`Upgrades`) saying which triangles get
-    ``NO`` split too."""
-    cl = working_edges(tree)
+    ``NO`` split too. ``after``: the previous round's plan, its expanded working triangles
+    and their children (:func:`expansions`), to advance the numbering from
+    (:func:`~qdrefine.adaptive.plan.advanced`) instead of numbering again."""
+    cl = working_edges(tree) if after is None else advanced(tree, *after)
     leaves = cl.leaves
     cl.split, _ = closure(cl.ce, tree.mark[leaves], cl.edges.shape[0], presplit=cl.pre,
                           earlier=lookup_sorted(tree.earlier_keys, cl.keys) >= 0,
                           upgrade=None if upgrades is None else
-                          lambda t, code: upgrades(leaves[t], code), layers=UPGRADE_LAYERS)
+                          lambda t, code: upgrades(leaves[t], code), layers=UPGRADE_LAYERS,
+                          around=cl.around)
     return cl
 
 
@@ -90,19 +52,25 @@ def one_sided_pieces(tree: Tree, cl: SplitPlan) -> tuple[NDArray[np.int64],
 
 def conflicts(inp: StepInput, tree: Tree, cl: SplitPlan) -> bool:
     """Expand the coarse side of every pre-split edge one of whose pieces gets points too
-    (two levels of points on one working edge)."""
+    (two levels of points on one working edge); whether there was any."""
+    return expansions(inp, tree, cl) is not None
+
+
+def expansions(inp: StepInput, tree: Tree, cl: SplitPlan
+               ) -> tuple[NDArray[np.bool_], NDArray[np.int64]] | None:
+    """:func:`conflicts`, returning the expanded working triangles ``(W,) bool`` and their
+    children's tree nodes ``(X, T)``, or None if there was no conflict."""
     cand, sub = one_sided_pieces(tree, cl)
     if not cand.size:
-        return False
+        return None
     at = lookup(cl.keys, sub)
     hit = np.where(at >= 0, cl.split[at], False) | (lookup(tree.reg_keys, sub) >= 0)
     bad = np.zeros(cl.edges.shape[0], dtype=bool)
     bad[cand[hit.any(axis=1)]] = True
     own = touching(bad, cl.tri_edges)
     if not own.any():
-        return False
-    expand(tree, cl.leaves[own], inp.sch)
-    return True
+        return None
+    return own, expand(tree, cl.leaves[own], inp.sch)
 
 
 #: A transition that leaves ``NO`` unsplit is upgraded (``NO`` split too) when that

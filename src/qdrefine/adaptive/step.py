@@ -15,7 +15,7 @@ from ..schemes import Scheme
 from .families import Families
 from .output import emit_step
 from .overlap import overlap_marks
-from .rounds import Upgrades, conflicts, plan_splits
+from .rounds import Upgrades, expansions, plan_splits
 from .working import start
 
 
@@ -87,8 +87,8 @@ def _one_step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool
     if verdicts is not None and fam.n_families:
         raise ValueError("internal error: known verdicts are for a mesh without families")
     upgrades = Upgrades(inp, tree, verdicts)  # the tree's first nodes: mesh's triangles
-    while True:
-        cl = plan_splits(tree, upgrades)
-        if not conflicts(inp, tree, cl):
-            return emit_step(inp, tree, cl)
+    cl = plan_splits(tree, upgrades)
+    while (grown := expansions(inp, tree, cl)) is not None:
+        cl = plan_splits(tree, upgrades, after=(cl, *grown))
+    return emit_step(inp, tree, cl)
 
