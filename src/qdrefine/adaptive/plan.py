@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from ..jit import threads_for
+from ..jit import AHEAD, prefetch, threads_for
 from ..mesh import index_dtype
 from ..numbering import number_edges_around
 from .edgekeys import KEY, edge_keys, edge_keys_of_rows, lookup, lookup_sorted
@@ -108,7 +108,7 @@ def advanced(tree: Tree, cl: SplitPlan, own: NDArray[np.bool_], kids: NDArray[np
     dropped = counts == 0
     # kept edges with a smaller key than each new one (new keys are no old key)
     smaller = np.searchsorted(cl.keys, new_keys)
-    smaller -= np.cumsum(dropped)[np.maximum(smaller - 1, 0)] * (smaller > 0)
+    smaller -= np.searchsorted(np.flatnonzero(dropped), smaller)
     edge_map = np.empty(e, dtype=np.int64)  # new id of each old edge, or -1
     _new_places(dropped, smaller, edge_map)
     new_ids = smaller + np.arange(new_keys.size)
@@ -186,7 +186,10 @@ def _move_rows(old, dest, out):
 
 @njit(parallel=True, cache=True)
 def _move_mapped_rows(old, dest, id_map, out):
+    last = old.shape[0] - 1
     for j in prange(old.shape[0]):
+        for c in range(old.shape[1]):  # the map's entries are far apart: ask for them early
+            prefetch(id_map, old[min(j + AHEAD, last), c])
         d = dest[j]
         if d >= 0:
             for c in range(old.shape[1]):
@@ -197,12 +200,14 @@ def _move_mapped_rows(old, dest, id_map, out):
 def _move_around(edge_map, old_start, old_rows, leaf_pos, start, rows):
     """Per kept old edge: the new places of its kept working triangles, from the start of
     its new range."""
+    last = old_rows.shape[0] - 1
     for g in prange(edge_map.shape[0]):
         d = edge_map[g]
         if d < 0:
             continue
         out = start[d]
         for k in range(old_start[g], old_start[g + 1]):
+            prefetch(leaf_pos, old_rows[min(k + 2 * AHEAD, last)])
             p = leaf_pos[old_rows[k]]
             if p >= 0:
                 rows[out] = p
