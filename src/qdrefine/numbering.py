@@ -107,13 +107,8 @@ def number_edges(triangles: NDArray[np.integer], n_points: int
     each triangle) and ``counts (E,) int64`` (number of triangles using each edge).
     Temporary memory: ``3 M`` half-edge records (bucket offset, larger vertex, index).
     """
-    tri = _as_index_array(triangles)
-    if tri.size and (tri.min() < 0 or tri.max() >= n_points):
-        raise ValueError(f"number_edges: vertex indices must be in [0, {n_points}), got "
-                         f"[{tri.min()}, {tri.max()}]")
-    buckets = sort_edges(tri, n_points)
-    edges, counts = buckets.edges()
-    return edges, buckets.global_ids(tri), counts
+    edges, tri_edges, counts, _ = _numbered(triangles, n_points, with_rows=False)
+    return edges, tri_edges, counts
 
 
 def number_edges_around(triangles: NDArray[np.integer], n_points: int
@@ -123,15 +118,21 @@ def number_edges_around(triangles: NDArray[np.integer], n_points: int
     to :func:`incidence` of ``tri_edges`` (CSR, ``(E + 1,)`` and ``(3 M,)`` int64, in
     increasing order around each edge), read off the sort instead of a second counting
     sort (3 M scattered writes)."""
+    edges, tri_edges, counts, rows = _numbered(triangles, n_points, with_rows=True)
+    start = np.zeros(counts.shape[0] + 1, dtype=np.int64)
+    np.cumsum(counts, out=start[1:])
+    return edges, tri_edges, counts, (start, rows)
+
+
+def _numbered(triangles: NDArray[np.integer], n_points: int, with_rows: bool):
+    """:func:`number_edges` with the indices checked, and the sort's rows if asked."""
     tri = _as_index_array(triangles)
     if tri.size and (tri.min() < 0 or tri.max() >= n_points):
         raise ValueError(f"number_edges: vertex indices must be in [0, {n_points}), got "
                          f"[{tri.min()}, {tri.max()}]")
-    buckets = sort_edges(tri, n_points, with_rows=True)
+    buckets = sort_edges(tri, n_points, with_rows=with_rows)
     edges, counts = buckets.edges()
-    start = np.zeros(counts.shape[0] + 1, dtype=np.int64)
-    np.cumsum(counts, out=start[1:])
-    return edges, buckets.global_ids(tri), counts, (start, buckets.rows)
+    return edges, buckets.global_ids(tri), counts, buckets.rows
 
 
 def sort_edges(triangles: NDArray[np.integer], n_points: int, n_chunks: int | None = None,
