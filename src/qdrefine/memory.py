@@ -25,12 +25,14 @@ _UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
 
 #: Local refinement (:mod:`qdrefine.adaptive`): peak bytes per working triangle of one pass
 #: before its output is emitted (the working tree, its edge numbering, the closure's
-#: tables); at most 319 measured on Gmsh meshes of 0.2 to 1.2 M triangles
-#: (``benchmarks/adaptive_memory.py``, ``docs/performance.md``), 1.5 times that here.
-LOCAL_PER_WORKING = 480
+#: tables; two rounds' numberings while one advances to the next); at most 407 measured on
+#: Gmsh meshes of 0.2 to 1.2 M triangles (``benchmarks/adaptive_memory.py``,
+#: ``docs/performance.md``), 1.5 times that here.
+LOCAL_PER_WORKING = 610
 #: Local refinement: peak bytes per output triangle of emitting a pass and finishing the
-#: step (output arrays, families, the stitched mesh, its history); at most 128 measured.
-LOCAL_PER_OUTPUT = 160
+#: step (output arrays, families, the stitched mesh, its history); at most 130 measured,
+#: about 1.27 times that here.
+LOCAL_PER_OUTPUT = 165
 
 
 def local_memory_needed(n_working: int = 0, n_output: int = 0) -> int:
