@@ -14,9 +14,14 @@ about 0.9 M triangles (made with the Gmsh SDK, ``pip install gmsh``, cached unde
   on transition children coarsen and redo their families. Its uniform level and
   scikit-fem's refinement are of that mesh.
 
-Then ``qdrefine.coarsen`` of the scattered step's output, everything marked (the input
-comes back) and the half ``x < 0``. Each time is the best of ``--repeat`` runs (numba on
-all threads). Usage::
+Then the natural loop on this mesh, ``--cycles`` calls of ``mesh = refine(mesh,
+marked=...)`` with the 1% of the current mesh nearest the re-entrant corner marked (each
+cycle's input carries the transitions of the one before), each cycle's step against a
+uniform level of its input and scikit-fem's ``refined`` of the same marks on the same
+triangles. Then ``qdrefine.coarsen`` of the scattered step's output, everything marked
+(the input comes back) and the half ``x < 0``. Each time is the best of ``--repeat``
+calls in alternating blocks with the uniform level it is compared with
+(:func:`step_and_uniform`; numba on all threads). Usage::
 
     python benchmarks/adaptive_bench.py [--repeat 3] [--json benchmarks/results/F.json]
 """
@@ -74,6 +79,28 @@ def best(f, repeat):
     return t_best, out
 
 
+#: Blocks of each timing in :func:`step_and_uniform` (alternated).
+ROUNDS = 2
+
+
+def step_and_uniform(step, uniform, repeat):
+    """Best times of ``step()`` and ``uniform()`` (and the step's output), timed in
+    alternating blocks of ``repeat`` calls, ``ROUNDS`` blocks each, so that both see the
+    same minutes of this shared machine and each block can warm up after the other. The
+    first uniform levels of a process, or those right after a step, often run 2 to 3
+    times slower than the later ones (0.25-0.41 s against 0.10-0.13 s on the 864k mesh,
+    in informal runs; the cause is not established: turning off NumPy's huge pages,
+    ``NUMPY_MADVISE_HUGEPAGE=0``, removed it in one run and not in another), and a best
+    of 3 taken once at the start of the run had given the steps a flattering baseline."""
+    t_step = t_uniform = np.inf
+    out = None
+    for _ in range(ROUNDS):
+        t_uniform = min(t_uniform, best(uniform, repeat)[0])
+        t, out = best(step, repeat)
+        t_step = min(t_step, t)
+    return t_step, out, t_uniform
+
+
 def _estimate(mesh: qdrefine.Mesh, marked: np.ndarray) -> dict:
     """Triangles in the estimate a window starts from (``adaptive/reach.py``) and triangles
     the step changes (not copied as they were), and how many of these the estimate
@@ -94,15 +121,57 @@ def _estimate(mesh: qdrefine.Mesh, marked: np.ndarray) -> dict:
             "changed_outside_estimate": int((~same & ~reached).sum())}
 
 
+def nearest_corner(mesh: qdrefine.Mesh, fraction: float = 0.01) -> np.ndarray:
+    """``(M,) bool``: the ``fraction`` of the triangles whose centroids are nearest the
+    re-entrant corner ``(0, 0)`` (what an error estimator marks on a singular problem)."""
+    centroids = mesh.points[mesh.triangles].mean(axis=1)
+    marked = np.zeros(mesh.n_triangles, dtype=bool)
+    k = int(fraction * mesh.n_triangles)
+    marked[np.argsort(np.linalg.norm(centroids, axis=1), kind="stable")[:k]] = True
+    return marked
+
+
+def _clustered_loop(mesh: qdrefine.Mesh, cycles: int, repeat: int) -> list[dict]:
+    """``cycles`` calls of ``mesh = refine(mesh, marked=nearest_corner(mesh))``, each
+    step (best of ``repeat``) against a uniform level of its input and scikit-fem's
+    ``refined`` of the same marks on the same triangles (without the history, which
+    scikit-fem does not have)."""
+    import skfem
+
+    rows = []
+    for cycle in range(1, cycles + 1):
+        marked = nearest_corner(mesh)
+        t_step, out, t_base = step_and_uniform(
+            lambda b=mesh, m=marked: qdrefine.refine(b, "7t-qd", marked=m),
+            lambda b=mesh: qdrefine.refine(b, "7t-qd"), repeat)
+        sk = skfem.MeshTri(np.ascontiguousarray(mesh.points.T),
+                           np.ascontiguousarray(mesh.triangles.T, dtype=np.int64))
+        ids = np.flatnonzero(marked)
+        t_sk = best(lambda s=sk, i=ids: s.refined(i), repeat)[0]
+        green = 0 if mesh.transitions is None else int((mesh.transitions[:, 0] >= 0).sum())
+        row = {"cycle": cycle, "triangles": mesh.n_triangles,
+               "transition_children": green, "marked": int(marked.sum()),
+               "added": out.n_triangles - mesh.n_triangles, "step_seconds": t_step,
+               "uniform_seconds": t_base, "step_over_uniform": t_step / t_base,
+               "scikit_fem_seconds": t_sk, "scikit_fem_over_step": t_sk / t_step}
+        rows.append(row)
+        print(f"clustered loop, cycle {cycle}: {mesh.n_triangles} triangles ({green} "
+              f"transition children), {row['marked']} marked, step {t_step:.3f} s "
+              f"({row['step_over_uniform']:.2f} x uniform), scikit-fem {t_sk:.3f} s "
+              f"({row['scikit_fem_over_step']:.1f} x the step)")
+        mesh = out
+    return rows
+
+
 def _coarsening(mesh: qdrefine.Mesh, fine: qdrefine.Mesh, repeat: int) -> dict:
     """``qdrefine.coarsen`` of the scattered step's output ``fine``: everything marked
     (back to ``mesh``, checked) and the half ``x < 0``, against a uniform level of
     ``fine``."""
-    t_base = best(lambda: qdrefine.refine(fine, "7t-qd"), repeat)[0]
     rows = {}
     for name, marked in (("everything", np.ones(fine.n_triangles, dtype=bool)),
                          ("x < 0", mark_box(fine, (-1, -1, 0, 1)))):
-        t, out = best(lambda m=marked: qdrefine.coarsen(fine, m), repeat)
+        t, out, t_base = step_and_uniform(lambda m=marked: qdrefine.coarsen(fine, m),
+                                          lambda: qdrefine.refine(fine, "7t-qd"), repeat)
         if name == "everything" and not (np.array_equal(out.points, mesh.points)
                                          and out.n_triangles == mesh.n_triangles):
             raise RuntimeError("coarsening everything did not give the input back")
@@ -117,30 +186,30 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--cycles", type=int, default=6,
+                        help="cycles of the clustered loop (0: none)")
     args = parser.parse_args(argv)
     import skfem
 
     mesh = big_l_shape()
-    centroids = mesh.points[mesh.triangles].mean(axis=1)
-    k = mesh.n_triangles // 100
-    clustered = np.zeros(mesh.n_triangles, dtype=bool)
-    clustered[np.argsort(np.linalg.norm(centroids, axis=1), kind="stable")[:k]] = True
+    clustered = nearest_corner(mesh)
     scattered = mark_random(mesh, 0.01)
     second = qdrefine.refine(mesh, "7t-qd", marked=scattered)
     cases = {"clustered": (mesh, clustered), "scattered": (mesh, scattered),
              "scattered, second cycle": (second, mark_random(second, 0.01, seed=1))}
     qdrefine.refine(examples.square(2), marked=[0])  # compile outside the timings
-    t_uniform, fine = best(lambda: qdrefine.refine(mesh, "7t-qd"), args.repeat)
+    fine = qdrefine.refine(mesh, "7t-qd")
     result = {"date": datetime.date.today().isoformat(), "machine": platform.platform(),
               "cpus": os.cpu_count(), "load_average": os.getloadavg(),
-              "triangles": mesh.n_triangles, "uniform_seconds": t_uniform,
-              "uniform_output_triangles": fine.n_triangles, "cases": {}}
-    print(f"mesh: {mesh.n_triangles} triangles; uniform 7t-qd level: {t_uniform:.3f} s")
+              "triangles": mesh.n_triangles, "uniform_output_triangles": fine.n_triangles,
+              "timing": f"best of {args.repeat} calls in {ROUNDS} alternating blocks "
+                        "(step_and_uniform)", "cases": {}}
+    del fine
+    print(f"mesh: {mesh.n_triangles} triangles")
     for name, (base, marked) in cases.items():
-        t_base = t_uniform if base is mesh else \
-            best(lambda b=base: qdrefine.refine(b, "7t-qd"), args.repeat)[0]
-        t_step, out = best(lambda b=base, m=marked: qdrefine.refine(b, "7t-qd", marked=m),
-                           args.repeat)
+        t_step, out, t_base = step_and_uniform(
+            lambda b=base, m=marked: qdrefine.refine(b, "7t-qd", marked=m),
+            lambda b=base: qdrefine.refine(b, "7t-qd"), args.repeat)
         sk = skfem.MeshTri(np.ascontiguousarray(base.points.T),
                            np.ascontiguousarray(base.triangles.T, dtype=np.int64))
         ids = np.flatnonzero(marked)
@@ -161,6 +230,7 @@ def main(argv=None) -> None:
         if "estimate_triangles" in row:
             print(f"  window estimate {row['estimate_triangles']} triangles, the step changes "
                   f"{row['changed_triangles']} ({row['changed_outside_estimate']} outside it)")
+    result["clustered_loop"] = _clustered_loop(mesh, args.cycles, args.repeat)
     result["coarsening"] = _coarsening(mesh, second, args.repeat)
     path = args.json or (Path(__file__).parent / "results"
                          / f"adaptive-bench-{result['date']}.json")
