@@ -172,7 +172,7 @@ def plot_loops(loops, history, png):
         marker, line = next(styles)
         ax.plot([r["cycle"] for r in res["cycles"]],
                 [r["min_angle_ratio"] for r in res["cycles"]], marker=marker, linestyle=line,
-                label=f"{name}, f = 1" + ("" if "Doerfler" in name else " (Doerfler 0.3)"))
+                label=f"{name.split(' (')[0]}, f = 1, Doerfler {res['theta']}")
     if history:
         for key, line in (("with history", "-"), ("history dropped", ":")):
             rows = history[key]
