@@ -27,17 +27,14 @@ HERE = Path(__file__).parent
 def measure(second: bool = False) -> dict:
     sys.path.insert(0, str(HERE))
     import numpy as np
-    from adaptive_bench import big_l_shape
+    from adaptive_bench import big_l_shape, nearest_corner
 
     import qdrefine
     from qdrefine import examples
     from qdrefine.marking import mark_random
 
     mesh = big_l_shape()
-    centroids = mesh.points[mesh.triangles].mean(axis=1)
-    clustered = np.zeros(mesh.n_triangles, dtype=bool)
-    clustered[np.argsort(np.linalg.norm(centroids, axis=1), kind="stable")[
-        :mesh.n_triangles // 100]] = True
+    clustered = nearest_corner(mesh)
     marks = {"clustered": clustered, "scattered": mark_random(mesh, 0.01)}
     qdrefine.refine(examples.square(2), marked=[0])  # compiled outside the timings
     qdrefine.refine(mesh, "7t-qd", marked=marks["scattered"])
