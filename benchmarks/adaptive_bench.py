@@ -133,9 +133,9 @@ def nearest_corner(mesh: qdrefine.Mesh, fraction: float = 0.01) -> np.ndarray:
 
 def _clustered_loop(mesh: qdrefine.Mesh, cycles: int, repeat: int) -> list[dict]:
     """``cycles`` calls of ``mesh = refine(mesh, marked=nearest_corner(mesh))``, each
-    step (best of ``repeat``) against a uniform level of its input and scikit-fem's
-    ``refined`` of the same marks on the same triangles (without the history, which
-    scikit-fem does not have)."""
+    step against a uniform level of its input (:func:`step_and_uniform`) and scikit-fem's
+    ``refined`` of the same marks on the same triangles (best of ``repeat``; without the
+    history, which scikit-fem does not have)."""
     import skfem
 
     rows = []
