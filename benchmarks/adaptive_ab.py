@@ -6,9 +6,12 @@ the triangles marked, clustered at the re-entrant corner or scattered at random)
 process times, best of 5: one uniform 7T-QD level, the clustered step and the scattered
 step; with ``--second``, best of 3, also the scattered second cycle (1% scattered marks
 again on the scattered step's output, which carries its transitions) and a uniform level
-of that mesh. Usage (a second source tree, e.g. ``git worktree add /tmp/old REV``)::
+of that mesh; with ``--coarsen``, best of 3, ``qdrefine.coarsen`` of the scattered step's
+output, everything marked and the half ``x < 0``. Usage (a second source tree, e.g. ``git
+worktree add /tmp/old REV``)::
 
-    python benchmarks/adaptive_ab.py /tmp/old/src [--rounds 2] [--second] [--json FILE]
+    python benchmarks/adaptive_ab.py /tmp/old/src [--rounds 2] [--second] [--coarsen]
+        [--json FILE]
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from pathlib import Path
 HERE = Path(__file__).parent
 
 
-def measure(second: bool = False) -> dict:
+def measure(second: bool = False, coarsening: bool = False) -> dict:
     sys.path.insert(0, str(HERE))
     import numpy as np
     from adaptive_bench import big_l_shape, nearest_corner
@@ -56,6 +59,13 @@ def measure(second: bool = False) -> dict:
         again = mark_random(first, 0.01, seed=1)
         row["second_uniform_s"] = best(lambda: qdrefine.refine(first, "7t-qd"), 3)
         row["second_cycle_s"] = best(lambda: qdrefine.refine(first, "7t-qd", marked=again), 3)
+    if coarsening:
+        from qdrefine.marking import mark_box
+
+        fine = qdrefine.refine(mesh, "7t-qd", marked=marks["scattered"])
+        for name, marked in (("everything", np.ones(fine.n_triangles, dtype=bool)),
+                             ("half", mark_box(fine, (-1, -1, 0, 1)))):
+            row[f"coarsen_{name}_s"] = best(lambda m=marked: qdrefine.coarsen(fine, m), 3)
     return row
 
 
@@ -66,10 +76,13 @@ def main(argv=None) -> None:
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--second", action="store_true",
                         help="also time the scattered second cycle (about a minute more)")
+    parser.add_argument("--coarsen", action="store_true",
+                        help="also time coarsening the scattered step's output: everything, "
+                             "and the half x < 0")
     parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.measure:
-        print(json.dumps(measure(args.second)))
+        print(json.dumps(measure(args.second, args.coarsen)))
         return
     rows = []
     for _ in range(args.rounds):
@@ -77,7 +90,8 @@ def main(argv=None) -> None:
             env = dict(os.environ)
             if src is not None:
                 env["PYTHONPATH"] = str(Path(src).resolve())
-            flags = ["--measure"] + (["--second"] if args.second else [])
+            flags = ["--measure"] + (["--second"] if args.second else []) \
+                + (["--coarsen"] if args.coarsen else [])
             out = subprocess.run([sys.executable, __file__, args.other, *flags],
                                  env=env, capture_output=True, text=True, check=True)
             rows.append(json.loads(out.stdout.strip().splitlines()[-1]))

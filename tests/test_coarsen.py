@@ -169,6 +169,32 @@ def test_a_lattice_partition_that_is_no_parent_is_not_restored(scheme, base, mon
     _assert_same(_all_the_way_back(right, scheme), base)
 
 
+@settings(max_examples=20, deadline=None)
+@given(st.sampled_from(["l_shape", "plate_with_hole", "boundary_layer"]),
+       st.integers(0, 2**32 - 1))
+def test_vertex_neighbours_list_each_vertexs_neighbours_once_in_scan_order(name, seed):
+    """The corner search reads each vertex's neighbours from one packed run: the other
+    vertices of its triangles, in the order of the incidence lists and of the rows, each
+    once (so the search meets candidates in the order it met them through the triangles),
+    with their coordinates; on any subset of triangles in any order and rotation."""
+    from qdrefine.numbering import incidence
+
+    mesh = examples.gmsh_mesh(name)
+    rng = np.random.default_rng(seed)
+    n = mesh.n_triangles
+    rows = mesh.triangles.astype(np.int64)[rng.permutation(n)[:rng.integers(1, n + 1)]]
+    shift = rng.integers(0, 3, rows.shape[0])[:, None]
+    rows = np.take_along_axis(rows, (shift + np.arange(3)) % 3, axis=1)
+    start, tris = incidence(rows, mesh.n_points)
+    first, ids, xy = red_module.vertex_neighbours(mesh.points, rows, start, tris)
+    for v in range(mesh.n_points):
+        expected = []
+        for t in tris[start[v]:start[v + 1]]:
+            expected += [u for u in rows[t] if u != v and u not in expected]
+        assert ids[first[v]:first[v + 1]].tolist() == expected
+    np.testing.assert_array_equal(xy, mesh.points[ids])
+
+
 def test_without_history_nothing_changes():
     mesh = refine(examples.square(2), levels=1)  # uniform: no origins
     assert mesh.origins is None

@@ -50,7 +50,8 @@ def red_families(mesh: Mesh, fam: Families, marked: NDArray[np.bool_], sch: Sche
     cand = np.flatnonzero(chosen)
     corners = np.full((cand.size, 3, 3 + 3 * k), -1, dtype=np.int64)
     with threads_for(cand.size):
-        _corner_guesses(points, rows, start, tris, cand, k, corners)
+        near = vertex_neighbours(points, rows, start, tris)
+        _corner_guesses(points, rows, *near, cand, k, corners)
     guess = corners.reshape(-1, 3 + 3 * k)
     guess = guess[guess[:, 0] >= 0]
     if not guess.size:
@@ -136,92 +137,143 @@ def _contains(tri: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.bo
     return out
 
 
+def vertex_neighbours(points: NDArray[np.float64], rows: NDArray[np.int64],
+                      start: NDArray[np.int64], tris: NDArray[np.int64]
+                      ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """The vertices sharing a triangle of ``rows (W, 3)`` with each vertex, in the order
+    of its triangles ``tris[start[v]:start[v + 1]]`` (:func:`~qdrefine.numbering.
+    incidence`) and of their rows, each once: ``ids[first[v]:first[v + 1]]``, with their
+    coordinates ``xy (N, 2)`` beside them, so that the searches around a vertex read one
+    contiguous run instead of a triangle row and a point for every corner (parallel over
+    vertices, the same on any number of threads)."""
+    n = start.shape[0] - 1
+    room = np.empty(2 * tris.shape[0], dtype=np.int64)  # two others per incident triangle
+    count = np.zeros(n, dtype=np.int64)
+    _distinct_neighbours(rows, start, tris, room, count)
+    first = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(count, out=first[1:])
+    ids = np.empty(int(first[-1]), dtype=np.int64)
+    xy = np.empty((ids.shape[0], 2))
+    _packed_neighbours(points, start, room, first, ids, xy)
+    return first, ids, xy
+
+
+@njit(parallel=True, cache=True)
+def _distinct_neighbours(rows, start, tris, room, count):
+    """``room[2 start[v]:]``: the distinct other vertices of ``v``'s triangles, in order;
+    ``count[v]``: how many."""
+    for v in prange(start.shape[0] - 1):
+        base = 2 * start[v]
+        c = 0
+        for i in range(start[v], start[v + 1]):
+            for m in range(3):
+                u = rows[tris[i], m]
+                if u == v:
+                    continue
+                seen = False
+                for h in range(base, base + c):
+                    if room[h] == u:
+                        seen = True
+                        break
+                if not seen:
+                    room[base + c] = u
+                    c += 1
+        count[v] = c
+
+
+@njit(parallel=True, cache=True)
+def _packed_neighbours(points, start, room, first, ids, xy):
+    for v in prange(first.shape[0] - 1):
+        base = 2 * start[v]
+        for h in range(first[v + 1] - first[v]):
+            u = room[base + h]
+            ids[first[v] + h] = u
+            xy[first[v] + h, 0] = points[u, 0]
+            xy[first[v] + h, 1] = points[u, 1]
+
+
 @njit(cache=True)
 def _same_point(points, v, x, y):
     return points[v, 0] == x and points[v, 1] == y
 
 
 @njit(cache=True)
-def _near(points, v, x, y, tol):
-    return abs(points[v, 0] - x) <= tol and abs(points[v, 1] - y) <= tol
+def _near(x, y, px, py, tol):
+    return abs(x - px) <= tol and abs(y - py) <= tol
 
 
 @njit(cache=True)
-def _far_corner(points, start, tris, rows, a, p, k):
+def _far_corner(points, first, ids, xy, a, p, k):
     """The point ``b`` and ``b``'s-side point ``p2`` such that ``p`` (and ``p2``) are the
     points of edge ``(a, b)`` by the refinement's formula, searched two working edges
     from ``p`` (only among the points near where they would be, then exactly);
-    ``(-1, -1)`` if there is none."""
+    ``(-1, -1)`` if there is none. ``first, ids, xy``: :func:`vertex_neighbours`."""
     dx, dy = points[p, 0] - points[a, 0], points[p, 1] - points[a, 1]
     # far below the edge, far above rounding: the exact test decides
     tol = 1e-6 * (abs(dx) + abs(dy)) + 1e-13 * (abs(points[p, 0]) + abs(points[p, 1]))
     bx, by = points[a, 0] + (k + 1) * dx, points[a, 1] + (k + 1) * dy  # b, about
     if k == 1:
-        for i in range(start[p], start[p + 1]):
-            for j in range(3):
-                y = rows[tris[i], j]
-                if y != a and y != p and _near(points, y, bx, by, tol) and \
-                        _same_point(points, p, edge_point(points[a, 0], points[y, 0], 0, 1),
-                                    edge_point(points[a, 1], points[y, 1], 0, 1)):
-                    return y, -1
+        for h in range(first[p], first[p + 1]):
+            y = ids[h]
+            if y != a and _near(xy[h, 0], xy[h, 1], bx, by, tol) and \
+                    _same_point(points, p, edge_point(points[a, 0], points[y, 0], 0, 1),
+                                edge_point(points[a, 1], points[y, 1], 0, 1)):
+                return y, -1
         return -1, -1
-    for i in range(start[p], start[p + 1]):
-        for j in range(3):
-            x = rows[tris[i], j]
-            if x == a or x == p or not _near(points, x, points[a, 0] + 2 * dx,
-                                             points[a, 1] + 2 * dy, tol):
+    cx, cy = points[a, 0] + 2 * dx, points[a, 1] + 2 * dy  # p2, about
+    for h in range(first[p], first[p + 1]):
+        x = ids[h]
+        if x == a or not _near(xy[h, 0], xy[h, 1], cx, cy, tol):
+            continue
+        for h2 in range(first[x], first[x + 1]):
+            y = ids[h2]
+            if y == a or y == p or not _near(xy[h2, 0], xy[h2, 1], bx, by, tol):
                 continue
-            for i2 in range(start[x], start[x + 1]):
-                for j2 in range(3):
-                    y = rows[tris[i2], j2]
-                    if y == a or y == p or y == x or not _near(points, y, bx, by, tol):
-                        continue
-                    if _same_point(points, p, edge_point(points[a, 0], points[y, 0], 0, 2),
-                                   edge_point(points[a, 1], points[y, 1], 0, 2)) and \
-                            _same_point(points, x, edge_point(points[a, 0], points[y, 0], 1, 2),
-                                        edge_point(points[a, 1], points[y, 1], 1, 2)):
-                        return y, x
+            if _same_point(points, p, edge_point(points[a, 0], points[y, 0], 0, 2),
+                           edge_point(points[a, 1], points[y, 1], 0, 2)) and \
+                    _same_point(points, x, edge_point(points[a, 0], points[y, 0], 1, 2),
+                                edge_point(points[a, 1], points[y, 1], 1, 2)):
+                return y, x
     return -1, -1
 
 
 @njit(cache=True)
-def _near_point(points, start, tris, rows, b, c, j, k):
+def _near_point(points, first, ids, xy, b, c, j, k):
     """The working-mesh neighbour of ``b`` at point ``j`` of edge ``(b, c)`` (from ``b``),
     or -1."""
     x0 = edge_point(points[b, 0], points[c, 0], j, k)
     x1 = edge_point(points[b, 1], points[c, 1], j, k)
-    for i in range(start[b], start[b + 1]):
-        for m in range(3):
-            v = rows[tris[i], m]
-            if v != b and _same_point(points, v, x0, x1):
-                return v
+    for h in range(first[b], first[b + 1]):
+        if xy[h, 0] == x0 and xy[h, 1] == x1:
+            return ids[h]
     return -1
 
 
 @njit(parallel=True, cache=True)
-def _corner_guesses(points, rows, start, tris, cand, k, out):
+def _corner_guesses(points, rows, first, ids, xy, cand, k, out):
     """For each candidate working triangle and each of its vertices ``a``: if it is the
     corner child at ``a`` of a triangle ``(a, b, c)``, that triangle and its edges'
     points (from ``v_i`` along ``(v_i, v_{i+1})``) into ``out[i, j]`` (each candidate
-    on its own: bit-identical on any number of threads)."""
+    on its own: bit-identical on any number of threads); ``first, ids, xy``:
+    :func:`vertex_neighbours`."""
     for i in prange(cand.shape[0]):
         t = cand[i]
         for j in range(3):
             a, p, q = rows[t, j], rows[t, (j + 1) % 3], rows[t, (j + 2) % 3]
-            b, p2 = _far_corner(points, start, tris, rows, a, p, k)
+            b, p2 = _far_corner(points, first, ids, xy, a, p, k)
             if b < 0:
                 continue
-            c, q2 = _far_corner(points, start, tris, rows, a, q, k)
+            c, q2 = _far_corner(points, first, ids, xy, a, q, k)
             if c < 0:
                 continue
-            r1 = _near_point(points, start, tris, rows, b, c, 0, k)
+            r1 = _near_point(points, first, ids, xy, b, c, 0, k)
             if r1 < 0:
                 continue
             out[i, j, 0], out[i, j, 1], out[i, j, 2] = a, b, c
             if k == 1:
                 out[i, j, 3], out[i, j, 4], out[i, j, 5] = p, r1, q
             else:
-                r2 = _near_point(points, start, tris, rows, c, b, 0, k)
+                r2 = _near_point(points, first, ids, xy, c, b, 0, k)
                 if r2 < 0:
                     out[i, j, 0] = -1
                     continue
