@@ -48,9 +48,12 @@ def red_families(mesh: Mesh, fam: Families, marked: NDArray[np.bool_], sch: Sche
     start, tris = incidence(rows, mesh.n_points)
     points = np.ascontiguousarray(mesh.points, dtype=np.float64)
     cand = np.flatnonzero(chosen)
+    if not cand.size:
+        return np.empty((0, 3 + 3 * k + t_count), dtype=np.int64)
     corners = np.full((cand.size, 3, 3 + 3 * k), -1, dtype=np.int64)
-    with threads_for(cand.size):
+    with threads_for(rows.shape[0]):
         near = vertex_neighbours(points, rows, start, tris)
+    with threads_for(cand.size):
         _corner_guesses(points, rows, *near, cand, k, corners)
     guess = corners.reshape(-1, 3 + 3 * k)
     guess = guess[guess[:, 0] >= 0]
@@ -142,12 +145,21 @@ def vertex_neighbours(points: NDArray[np.float64], rows: NDArray[np.int64],
                       ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
     """The vertices sharing a triangle of ``rows (W, 3)`` with each vertex, in the order
     of its triangles ``tris[start[v]:start[v + 1]]`` (:func:`~qdrefine.numbering.
-    incidence`) and of their rows, each once: ``ids[first[v]:first[v + 1]]``, with their
-    coordinates ``xy (N, 2)`` beside them, so that the searches around a vertex read one
-    contiguous run instead of a triangle row and a point for every corner (parallel over
-    vertices, the same on any number of threads)."""
+    incidence`) and of their rows, each once, with their coordinates beside them, so that
+    the searches around a vertex read one contiguous run instead of a triangle row and a
+    point for every corner (parallel over vertices, the same on any number of threads).
+
+    Returns
+    -------
+    first : (N + 1,) int64
+        The neighbours of vertex ``v`` are ``ids[first[v]:first[v + 1]]``.
+    ids : (first[-1],) int64
+    xy : (first[-1], 2) float64
+        ``points[ids]``.
+    """
     n = start.shape[0] - 1
-    room = np.empty(2 * tris.shape[0], dtype=np.int64)  # two others per incident triangle
+    # at most two others per incident triangle: 2 deg(v) places from 2 start[v] (6 W in all)
+    room = np.empty(2 * tris.shape[0], dtype=np.int64)
     count = np.zeros(n, dtype=np.int64)
     _distinct_neighbours(rows, start, tris, room, count)
     first = np.zeros(n + 1, dtype=np.int64)
@@ -183,6 +195,7 @@ def _distinct_neighbours(rows, start, tris, room, count):
 
 @njit(parallel=True, cache=True)
 def _packed_neighbours(points, start, room, first, ids, xy):
+    """Each vertex's run of ``room`` to ``ids[first[v]:]``, with the coordinates."""
     for v in prange(first.shape[0] - 1):
         base = 2 * start[v]
         for h in range(first[v + 1] - first[v]):
