@@ -883,3 +883,40 @@ def test_an_advanced_round_numbers_the_working_mesh_as_from_scratch(name, scheme
     for cycle in range(4):
         mesh = refine(mesh, scheme, marked=marking.mark_random(mesh, 0.15, seed=cycle))
     assert len(checked) >= 3 and sum(checked) > 0
+
+
+@pytest.mark.parametrize("scheme", ["7t-qd", "7t-le", "4t-le"])
+@pytest.mark.parametrize("name", ["plate_with_hole", "boundary_layer"])
+def test_kept_families_are_the_ones_the_history_rebuilds(name, scheme):
+    """The families a refinement keeps on its output for the next call (so that call does
+    not rebuild them from ``transitions``) are exactly what ``families_of`` rebuilds from
+    the rows, cycle after cycle and after coarsening; never pickled; not used once an array
+    of the mesh is made writeable again."""
+    import pickle
+
+    from qdrefine import coarsen, examples
+    from qdrefine.marking import mark_random
+
+    k = get_scheme(scheme).stencil.per_edge
+    mesh = examples.gmsh_mesh(name)
+    kept_seen = 0
+    for cycle in range(5):
+        if cycle == 3:
+            mesh = coarsen(mesh, mark_random(mesh, 0.5, seed=cycle), scheme)
+        else:
+            mesh = refine(mesh, scheme, marked=mark_random(mesh, 0.05, seed=cycle))
+        kept = mesh.__dict__.get("_families")
+        plain = Mesh._trusted(mesh.points, mesh.triangles, transitions=mesh.transitions)
+        _, rebuilt, order = families_of(plain, k)
+        if kept is None:  # no transition child left
+            assert rebuilt.n_families == 0
+            continue
+        kept_seen += 1
+        assert order is None
+        for field in ("member", "parent_triangles", "stencil"):
+            assert np.array_equal(getattr(kept, field), getattr(rebuilt, field)), field
+        assert families_of(mesh, k)[1] is kept
+        assert "_families" not in pickle.loads(pickle.dumps(mesh)).__dict__
+    assert kept_seen >= 3
+    mesh.transitions.flags.writeable = True  # a user who breaks immutability on purpose
+    assert families_of(mesh, k)[1] is not mesh.__dict__["_families"]

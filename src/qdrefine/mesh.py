@@ -197,9 +197,10 @@ class Mesh:
         return self.__dict__.pop("_buckets", None)
 
     def __getstate__(self) -> dict[str, Any]:
-        """Pickled without the kept edges; read-only mappings as plain dicts."""
+        """Pickled without what is kept for the next call (the sorted edges, transition
+        families: private attributes); read-only mappings as plain dicts."""
         return {k: dict(v) if isinstance(v, MappingProxyType) else v
-                for k, v in self.__dict__.items() if k != "_buckets"}
+                for k, v in self.__dict__.items() if not k.startswith("_")}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         for k, v in state.items():

@@ -44,6 +44,9 @@ def families_of(mesh: Mesh, k: int) -> tuple[Mesh, Families, NDArray[np.int64] |
     m = mesh.n_triangles
     if rows is None or not (rows[:, 0] >= 0).any():
         return mesh, Families.empty(m, k), None
+    kept = _kept_families(mesh, k)
+    if kept is not None:
+        return mesh, kept, None
     green = np.flatnonzero(rows[:, 0] >= 0)
     parent_rows, family = _unique_rows(_rotated(rows[green]))
     first = np.full(parent_rows.shape[0], m, dtype=np.int64)
@@ -78,9 +81,27 @@ def with_history(mesh: Mesh, families: Families, origins: NDArray | None = None)
     if families.n_families:
         rows = np.empty((member.size, 3), dtype=np.int64)
         _parent_rows(member, families.parent_triangles, rows)
-    return Mesh._trusted(mesh.points, mesh.triangles, mesh.cell_tags, mesh.edges,
-                         mesh.edge_tags, mesh.point_data, mesh.cell_data,
-                         mesh.physical_names, rows, origins=origins)
+    out = Mesh._trusted(mesh.points, mesh.triangles, mesh.cell_tags, mesh.edges,
+                        mesh.edge_tags, mesh.point_data, mesh.cell_data,
+                        mesh.physical_names, rows, origins=origins)
+    if families.n_families:
+        # what families_of would rebuild from the rows (their rotation included), kept for
+        # the next call on this mesh: rebuilding costs about a seventh of a scattered step
+        # on a mesh with history (docs/adaptive.md, "Cost")
+        kept = Families(member, _rotated(families.parent_triangles), families.stencil)
+        object.__setattr__(out, "_families", kept)
+    return out
+
+
+def _kept_families(mesh: Mesh, k: int) -> Families | None:
+    """The families :func:`with_history` kept on ``mesh`` for a scheme with ``k`` points per
+    edge, or None: none kept, another ``k``, or an array made writeable again since."""
+    kept = mesh.__dict__.get("_families")
+    if kept is None or kept.per_edge != k or kept.member.shape[0] != mesh.n_triangles:
+        return None
+    if any(a.flags.writeable for a in (mesh.points, mesh.triangles, mesh.transitions)):
+        return None
+    return kept
 
 
 @njit(cache=True)

@@ -192,7 +192,8 @@ def without_points(mesh: Mesh, fam: Families, keep: NDArray[np.bool_],
     """``mesh`` and ``fam`` with only the points ``keep (N,)`` (in their order), tagged
     ``edges`` (``mesh``'s point ids) and ``edge_tags`` set; and the new id of every point
     ``(N + 1,)``, ``-1`` for removed ones and at the end (so ``-1`` stays ``-1``)."""
-    new_id = np.append(np.cumsum(keep) - 1, -1)
+    new_id = np.full(keep.shape[0] + 1, -1, dtype=np.int64)
+    new_id[:-1][keep] = np.arange(int(keep.sum()))
     dtype = index_dtype(int(keep.sum()))
     if edges is not None:
         edges = new_id[edges].astype(dtype)
