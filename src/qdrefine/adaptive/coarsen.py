@@ -158,7 +158,24 @@ def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
         raise RuntimeError("qdrefine internal error: coarsening split an edge without points")
     out, parents, fam2, _, _, _ = emit_step(inp, tree, cl)
     parents = stands_for[parents]
-    return _without_unused(mesh, out, fam2, mesh.origins[parents]), parents
+    origins = mesh.origins[parents]
+    return _without_unused(mesh, _origin_rows(out, fam2, origins), fam2, origins), parents
+
+
+def _origin_rows(out: Mesh, fam: Families, origins: NDArray[np.int64]) -> Mesh:
+    """``out`` with every triangle that is its own origin (the same three points) written
+    as the origin's row, its rotation included (a restored triangle's row otherwise starts
+    at its canonical first vertex), so that coarsening everything gives the input's rows
+    back; ``origins (M', 3)`` in ``out``'s point ids."""
+    rows = out.triangles
+    same = (np.sort(rows, axis=1) == np.sort(origins, axis=1)).all(axis=1) & (fam.member < 0)
+    same &= (rows != origins).any(axis=1)
+    if not same.any():
+        return out
+    rows = rows.copy()
+    rows[same] = origins[same]
+    return Mesh._trusted(out.points, rows, out.cell_tags, out.edges, out.edge_tags,
+                         out.point_data, out.cell_data, out.physical_names)
 
 
 def _coarse_plan(tree: Tree, upgrades: Upgrades) -> SplitPlan:
