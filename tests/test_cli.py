@@ -1,6 +1,7 @@
 """The command line: every subcommand (in-process through ``qdrefine.cli.main``; the entry
 point itself by ``python -m qdrefine``), and its error paths."""
 
+import importlib
 import json
 from pathlib import Path
 
@@ -248,7 +249,39 @@ def test_first_run_says_it_compiles(tmp_path, monkeypatch, capsys):
     mesh = tmp_path / "m.msh"
     qdrefine.write(mesh, examples.square(2))
     for cold in (True, False):
-        monkeypatch.setattr(cli_module, "compiled_before", lambda cold=cold: not cold)
+        monkeypatch.setattr(cli_module, "compiled_before", lambda module, cold=cold: not cold)
         assert main(["info", str(mesh)]) == 0
         err = capsys.readouterr().err
         assert ("compiling the numerical kernels" in err) == cold, err
+
+
+def test_first_local_refinement_says_it_compiles_too(tmp_path, monkeypatch, capsys):
+    """Local refinement and coarsening compile kernels of their own (about a minute on a
+    first run, after a demo compiled the uniform ones): the note looks for them too."""
+    import numba
+
+    import qdrefine.cli as cli_module
+    from qdrefine.jit import compiled_before
+
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path / "cache"))
+    (tmp_path / "cache" / "deep").mkdir(parents=True)
+    (tmp_path / "cache" / "deep" / "kernels.emit-12.py311.nbi").touch()
+    assert compiled_before() and not compiled_before("adaptive.longest_edge")
+    (tmp_path / "cache" / "deep" / "longest_edge._propagate-3.py311.nbi").touch()
+    assert compiled_before("adaptive.longest_edge")
+
+    mesh, out = tmp_path / "m.msh", tmp_path / "o.msh"
+    qdrefine.write(mesh, examples.square(2))
+    asked = []
+    monkeypatch.setattr(cli_module, "compiled_before",
+                        lambda module: asked.append(module) or module == "kernels")
+    for argv, local in ((["info", mesh], False), (["refine", mesh, out], False),
+                        (["refine", mesh, out, "--mark-box", "0,0,0.5,0.5"], True),
+                        (["coarsen", out, tmp_path / "c.msh", "--all"], True)):
+        asked.clear()
+        assert main([str(a) for a in argv]) == 0
+        err = capsys.readouterr().err
+        assert ("compiling the numerical kernels" in err) == local, (argv, err)
+        for module in asked:  # each names a module with cached kernels
+            source = importlib.import_module(f"qdrefine.{module}")
+            assert "cache=True" in Path(source.__file__).read_text(), module

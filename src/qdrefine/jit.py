@@ -67,15 +67,17 @@ cache_directory()
 
 
 def compiled_before(module: str = "kernels") -> bool:
-    """Whether numba's cache holds compiled code of ``qdrefine.<module>`` (index files
-    ``<module>.*.nbi``) where this process would look for it: ``NUMBA_CACHE_DIR`` when
-    set, else the package's ``__pycache__`` and the user's numba cache. ``False`` on a
-    first run, when the kernels will be compiled (tens of seconds)."""
-    pattern = f"{module}.*.nbi"
+    """Whether numba's cache holds compiled code of ``qdrefine.<module>`` (a dotted name
+    such as ``"adaptive.plan"``; index files ``<name>.*.nbi``) where this process would
+    look for it: ``NUMBA_CACHE_DIR`` when set, else the ``__pycache__`` next to the module
+    and the user's numba cache. ``False`` on a first run, when the kernels will be compiled
+    (tens of seconds)."""
+    *package, name = module.split(".")
+    pattern = f"{name}.*.nbi"
     if numba.config.CACHE_DIR:
         places = [Path(numba.config.CACHE_DIR)]
     else:
-        places = [Path(__file__).parent / "__pycache__", _user_cache()]
+        places = [Path(__file__).parent.joinpath(*package, "__pycache__"), _user_cache()]
     for place in places:
         if place.is_dir() and next(place.rglob(pattern), None) is not None:
             return True

@@ -1,8 +1,11 @@
 """The ``qdrefine`` command line: one module per subcommand.
 
 Each subcommand module defines ``HELP`` (one line), ``add_args(parser)`` and
-``run(args) -> int``. Errors that users can cause (bad arguments, bad files, bad meshes,
-a mesh too large for the memory) are raised as ``ValueError``, ``OSError`` or
+``run(args) -> int``, and may define ``compiled(args)``: the modules whose numba kernels
+these options need (default ``("kernels",)``), so that a first run says it compiles them.
+
+Errors that users can cause (bad arguments, bad files, bad meshes, a mesh too large for
+the memory) are raised as ``ValueError``, ``OSError`` or
 ``MemoryError`` and printed as one line ``qdrefine: error: ...`` with exit code 1; no
 traceback.
 """
@@ -41,7 +44,8 @@ def _parser() -> argparse.ArgumentParser:
         module = importlib.import_module(f"{__name__}.{name.replace('-', '_')}")
         cmd = sub.add_parser(name, help=module.HELP, description=module.HELP)
         module.add_args(cmd)
-        cmd.set_defaults(handler=module.run)
+        cmd.set_defaults(handler=module.run,
+                         compiled=getattr(module, "compiled", lambda args: ("kernels",)))
     return parser
 
 
@@ -52,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "handler", None) is None:
         parser.print_help()
         return 2
-    if not compiled_before():
+    if not all(compiled_before(module) for module in args.compiled(args)):
         print("qdrefine: note: compiling the numerical kernels for this machine (once, about "
               "a minute; later runs use the cache)", file=sys.stderr, flush=True)
     try:

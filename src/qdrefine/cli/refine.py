@@ -74,6 +74,12 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def compiled(args: argparse.Namespace) -> tuple[str, ...]:
+    """The modules whose kernels these options compile on a first run (local refinement
+    has its own, about a minute more)."""
+    return ("kernels", "adaptive.longest_edge") if marks.given(args) else ("kernels",)
+
+
 def _check_options(args: argparse.Namespace) -> int:
     """Option combinations argparse cannot express; returns the number of refinements."""
     marked = marks.given(args)
@@ -109,8 +115,8 @@ def _uniform(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress,
                 exc = exc.numbered(int(raw.triangle_numbers[exc.triangle]),
                                    tuple(int(raw.point_numbers[v]) for v in exc.vertices))
             raise exc from None
-    return mesh, (f"{n0} triangles refined by {args.scheme}, {levels} level"
-                  f"{'s' if levels != 1 else ''}")
+    return mesh, (f"{_common.counted(n0, 'triangle')} refined by {args.scheme}, "
+                  f"{_common.counted(levels, 'level')}")
 
 
 def _on_dask(args: argparse.Namespace) -> int:
