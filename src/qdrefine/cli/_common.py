@@ -98,6 +98,11 @@ def check_format_version(path: str, version: str | None) -> None:
         raise ValueError(f"{path}: --format-version applies to Gmsh .msh output only")
 
 
+def counted(n: int, noun: str) -> str:
+    """``"1 triangle"``, ``"2 triangles"``: a count with its noun, plural unless one."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def non_negative(text: str) -> int:
     """argparse type: an integer >= 0."""
     try:
@@ -130,6 +135,8 @@ def session() -> Iterator[None]:
     os.environ.setdefault("MPLBACKEND", "Agg")
     with warnings.catch_warnings():
         warnings.simplefilter("default")
+        # unclosed sockets and files of libraries (Dask's, at exit): nothing the user can act on
+        warnings.simplefilter("ignore", ResourceWarning)
         warnings.showwarning = show
         yield
 

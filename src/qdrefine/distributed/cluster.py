@@ -61,10 +61,9 @@ def local_client(n_workers: int | None = None, memory_limit: str | float = "auto
     from dask.system import CPU_COUNT
     from distributed import Client
 
-    if not _has_dashboard():
-        # no dashboard: its HTTP server (health checks) takes any free port, so two runs side
-        # by side do not fight over 8787
-        cluster_kwargs.setdefault("dashboard_address", ":0")
+    # any free port (the link is printed), so that two runs side by side do not fight over
+    # Dask's default 8787; without bokeh the HTTP server still serves health checks
+    cluster_kwargs.setdefault("dashboard_address", ":0")
     # a client given cluster arguments starts its own LocalCluster and closes it on close()
     client = Client(n_workers=n_workers or CPU_COUNT, threads_per_worker=1,
                     processes=processes, memory_limit=memory_limit, **cluster_kwargs)
