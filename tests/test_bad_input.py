@@ -245,8 +245,9 @@ def test_command_line(tmp_path, name):
         line = next(x for x in checked.stdout.splitlines() if x.startswith("error"))
         assert line.split()[1] == case.kind and case.message in checked.stdout, checked.stdout
         errors = sum(x.startswith("error ") for x in checked.stdout.splitlines())
-        assert checked.stdout.splitlines()[-1] == f"{path}: NOT usable ({errors} errors, " \
-            f"{sum(x.startswith('warning ') for x in checked.stdout.splitlines())} warnings)"
+        warns = sum(x.startswith("warning ") for x in checked.stdout.splitlines())
+        assert checked.stdout.splitlines()[-1] == f"{path}: NOT usable ({errors} error" \
+            f"{'' if errors == 1 else 's'}, {warns} warning{'' if warns == 1 else 's'})"
     assert not out.exists()
     assert _snapshot(tmp_path) == before
 
@@ -690,6 +691,17 @@ def test_a_mixed_xdmf_pair_is_refused(tmp_path):
                                          r"a mixed set"):
         qdrefine.read(a / "m.xdmf")
     assert qdrefine.read(b / "m.xdmf").n_triangles == examples.square(3).n_triangles
+
+
+def test_an_xdmf_file_without_its_hdf5_file_names_it(tmp_path):
+    """The XDMF file of a pair whose HDF5 file is gone: one line naming the missing file (not
+    HDF5's own message, several lines of library detail)."""
+    qdrefine.write(tmp_path / "m.xdmf", examples.square(2))
+    (tmp_path / "m.h5").unlink()
+    result = cli("info", tmp_path / "m.xdmf")
+    assert result.returncode == 1
+    assert result.stderr == (f"qdrefine: error: {tmp_path / 'm.h5'}: no such file (the heavy "
+                             "data of m.xdmf)\n")
 
 
 def _file_size_limit(limit: int):

@@ -82,6 +82,6 @@ def format_report(report: dict[str, Any]) -> str:
     for p in report["problems"]:
         lines.append(f"{p['severity']:8} {p['kind']:17} {p['count']:>8}  {p['message']}")
     verdict = "usable" if report["usable"] else "NOT usable"
-    lines.append(f"{report['file']}: {verdict} ({report['errors']} errors, "
-                 f"{report['warnings']} warnings)")
+    lines.append(f"{report['file']}: {verdict} ({_common.counted(report['errors'], 'error')}, "
+                 f"{_common.counted(report['warnings'], 'warning')})")
     return "\n".join(lines)

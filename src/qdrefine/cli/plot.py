@@ -31,5 +31,6 @@ def run(args: argparse.Namespace) -> int:
                        f"triangles, {mesh.n_points} points")
         _common.save_figure(ax.figure, args.output, dpi=max(args.dpi, 10))
         if not args.quiet:
-            print(f"{args.output}: {mesh.n_triangles} triangles drawn, coloured by {args.color}")
+            colour = "" if args.color == "none" else f", coloured by {args.color}"
+            print(f"{args.output}: {_common.counted(mesh.n_triangles, 'triangle')} drawn{colour}")
     return 0

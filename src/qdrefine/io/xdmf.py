@@ -38,7 +38,25 @@ def read(path: Path) -> RawMesh:
     from .meshio_formats import read_with_meshio
 
     _check_set(path)
+    _check_heavy_data(path)
     return read_with_meshio(path, "xdmf", "XDMF")
+
+
+_HDF = re.compile(rb'Format="HDF"[^>]*>\s*([^<:\s]+):')
+
+
+def _check_heavy_data(path: Path) -> None:
+    """One line naming a missing HDF5 file that the XDMF file refers to (HDF5's own message
+    is several lines of library detail)."""
+    try:
+        text = path.read_bytes()
+    except OSError:
+        return  # the reader says what is wrong
+    for name in dict.fromkeys(_HDF.findall(text)):
+        h5_path = path.parent / name.decode(errors="replace")
+        if not h5_path.is_file():
+            raise FileNotFoundError(f"{h5_path}: no such file (the heavy data of "
+                                    f"{path.name})")
 
 
 def _check_set(path: Path) -> None:
