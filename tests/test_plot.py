@@ -82,6 +82,26 @@ def test_tags_are_told_apart_without_colour_clashes():
     assert len({plot.tag_color(i) for i in range(3 * len(plot.PALETTE))}) == 24
 
 
+@pytest.mark.parametrize("levels", [0, 2])
+def test_tagged_edges_are_drawn_as_whole_chains(levels):
+    """Each edge tag of the plate is one closed loop (outer boundary, hole), drawn as one
+    path, so a dashed style stays dashed along a curve made of many short edges; each
+    tagged edge is in exactly one chain, in either direction."""
+    m = refine(examples.plate_with_hole(), levels=levels)
+    ax = plot.mesh(m, color="none")
+    labelled = [c for c in ax.collections if not c.get_label().startswith("_")]
+    for tag, collection in zip((1, 2), labelled, strict=True):
+        rows = m.edges[m.edge_tags == tag]
+        chains = plot.edge_chains(rows)
+        assert len(chains) == 1 and chains[0][0] == chains[0][-1]  # one closed loop
+        steps = {frozenset(s) for c in chains for s in zip(c[:-1], c[1:], strict=True)}
+        assert steps == {frozenset(r) for r in rows.tolist()}
+        assert sum(len(c) - 1 for c in chains) == len(rows)
+        assert len(collection.get_paths()) == 1
+    assert [c.tolist() for c in plot.edge_chains([[0, 1], [1, 2], [1, 3]])] == \
+        [[0, 1], [1, 2], [1, 3]]  # a vertex of three edges ends three chains
+
+
 def test_compared_schemes_differ_in_line_style_and_marker():
     """Two schemes with the same numbers (7T-QD and 7T-LE on a grid) stay both visible:
     different line styles, hollow markers of different sizes, palette colours."""

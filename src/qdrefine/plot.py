@@ -20,6 +20,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from . import quality
 from .mesh import Mesh
@@ -27,8 +28,8 @@ from .mesh import Mesh
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-__all__ = ["mesh", "min_angle_histogram", "compare", "COLORS", "COMPARE_METRICS", "PALETTE",
-           "LINE_STYLES", "MARKERS"]
+__all__ = ["mesh", "min_angle_histogram", "compare", "edge_chains", "COLORS",
+           "COMPARE_METRICS", "PALETTE", "LINE_STYLES", "MARKERS"]
 
 #: Choices of ``color`` for :func:`mesh`.
 COLORS = ("min-angle", "tag", "none")
@@ -74,6 +75,36 @@ def _choice(value: str, choices: Sequence[str], name: str) -> str:
     if value not in choices:
         raise ValueError(f"unknown {name} {value!r}; choose one of {', '.join(choices)}")
     return value
+
+
+def edge_chains(edges: NDArray[np.integer]) -> list[NDArray[np.int64]]:
+    """The edges ``(K, 2)`` (vertex ids, either direction) joined into chains of vertex
+    ids: each edge in exactly one chain, chains broken where a vertex has other than two
+    of the edges; a closed loop starts and ends at the same vertex. Deterministic (edge
+    order)."""
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    at: dict[int, list[int]] = {}
+    for e, (a, b) in enumerate(edges.tolist()):
+        at.setdefault(a, []).append(e)
+        at.setdefault(b, []).append(e)
+    used = np.zeros(edges.shape[0], dtype=bool)
+    chains = []
+    # chain ends first (vertices with one edge or three and more), then what is left: loops
+    for start in [v for v, es in at.items() if len(es) != 2] + list(at):
+        for first in at[start]:
+            if used[first]:
+                continue
+            chain, v, e = [start], start, first
+            while e is not None:
+                used[e] = True
+                a, b = edges[e]
+                v = int(b) if a == v else int(a)
+                chain.append(v)
+                if len(at[v]) != 2:
+                    break
+                e = next((f for f in at[v] if not used[f]), None)
+            chains.append(np.array(chain, dtype=np.int64))
+    return chains
 
 
 def mesh(m: Mesh, ax: Axes | None = None, *, color: str = "min-angle",
@@ -138,9 +169,10 @@ def mesh(m: Mesh, ax: Axes | None = None, *, color: str = "min-angle",
         ax.triplot(tri, color="0.2", linewidth=max(lw, 0.2))
     if tagged_edges and m.edges is not None and len(m.edges):
         etags = np.asarray(m.edge_tags)
-        segs = p[np.asarray(m.edges)]
+        rows = np.asarray(m.edges)
         for i, tag in enumerate(np.unique(etags)):
-            mine = segs[etags == tag]
+            # whole chains, so that a dash pattern runs along a curve of short edges
+            mine = [p[chain] for chain in edge_chains(rows[etags == tag])]
             ax.add_collection(LineCollection(mine, colors="white", linewidths=3.6))
             ax.add_collection(LineCollection(mine, colors="black", linewidths=2.0,
                                              linestyles=[LINE_STYLES[i % len(LINE_STYLES)]],
