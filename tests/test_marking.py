@@ -129,3 +129,26 @@ def test_mark_tag_of_a_missing_tag_lists_the_tags_present():
     mesh = examples.plate_with_hole()
     with pytest.raises(ValueError, match=r"no triangle has cell tag 7 \(cell tags: 1, 2\)"):
         mark_tag(mesh, [1, 7])
+
+
+def test_an_integer_mask_is_not_taken_for_indices(tmp_path):
+    """One 0/1 integer per triangle (a mask saved as integers) is refused, not read as the
+    indices 0 and 1 (which would silently mark two triangles): by ``refine``, ``coarsen``
+    and ``--mark-file``'s ``.npy``; a genuine index list is still indices."""
+    import qdrefine
+    from qdrefine.marking import mark_file
+
+    mesh = examples.plate_with_hole()
+    mask = np.zeros(mesh.n_triangles, dtype=np.uint8)
+    mask[::3] = 1
+    for call in (lambda: qdrefine.refine(mesh, marked=mask),
+                 lambda: qdrefine.coarsen(mesh, mask.astype(int))):
+        with pytest.raises(ValueError, match="all 0 or 1, one per triangle"):
+            call()
+    np.save(tmp_path / "m.npy", mask)
+    with pytest.raises(ValueError, match=r"m\.npy: .* all 0 or 1, one per triangle"):
+        mark_file(mesh, tmp_path / "m.npy")
+    fine = qdrefine.refine(mesh, marked=mask.astype(bool))
+    assert fine.n_triangles > mesh.n_triangles + 300
+    assert np.array_equal(qdrefine.refine(mesh, marked=[0, 1]).triangles,
+                          qdrefine.refine(mesh, marked=np.arange(mesh.n_triangles) < 2).triangles)

@@ -113,6 +113,9 @@ def _npy_marks(path: Path, n: int) -> NDArray[np.bool_]:
     if bad.size:
         raise ValueError(f"{path}, entry {int(bad[0])}: triangle id {int(a[bad[0]])} is "
                          f"outside 0..{n - 1}")
+    if a.size == n > 2 and a.max(initial=0) <= 1:
+        raise ValueError(f"{path}: {n} integers, all 0 or 1, one per triangle: a mask? Save "
+                         "it as booleans (mask.astype(bool)) or as triangle ids")
     return as_mask(a, n)
 
 

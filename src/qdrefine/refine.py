@@ -34,6 +34,8 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
         children of the marked triangles are marked again. Everything said below about
         points, parents and tags holds, with only the split edges getting new points
         (numbered by their rank among split edges) and tagged edges cut only where split.
+        Indices must be integers, a mask booleans: ``M`` integers all 0 or 1 (a mask
+        stored as integers) are refused rather than read as the indices 0 and 1.
     strict : bool
         Uniform refinement only: ``False`` returns children that rounding the new points to
         float64 flattened or inverted instead of raising (for studies of that effect,

@@ -23,7 +23,8 @@ from .window import windowed_step
 
 
 def as_mask(marked: ArrayLike, n_triangles: int) -> NDArray[np.bool_]:
-    """A boolean mask ``(M,)`` from a mask or an array of triangle indices."""
+    """A boolean mask ``(M,)`` from a mask or an array of triangle indices; ``ValueError``
+    for ``M > 2`` integers all 0 or 1 (a mask stored as integers, not indices)."""
     a = np.asarray(marked)
     if a.dtype == bool:
         if a.shape != (n_triangles,):
@@ -40,6 +41,12 @@ def as_mask(marked: ArrayLike, n_triangles: int) -> NDArray[np.bool_]:
     bad = (a < 0) | (a >= n_triangles)
     if bad.any():
         raise ValueError(f"marked index {int(a[bad][0])} is outside 0..{n_triangles - 1}")
+    if a.size == n_triangles > 2 and a.max() <= 1:
+        # one 0/1 per triangle, repeated indices: a mask stored as integers (e.g. read from
+        # a file), which as indices would mark triangles 0 and 1 only
+        raise ValueError(f"marked: {a.size} integers, all 0 or 1, one per triangle: a mask "
+                         "stored as integers? Pass it as booleans (marked.astype(bool)) or "
+                         "as indices (np.flatnonzero(marked))")
     mask = np.zeros(n_triangles, dtype=bool)
     mask[a] = True
     return mask
