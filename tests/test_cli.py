@@ -89,7 +89,8 @@ def test_info_json_and_text(tmp_path, run):
     assert d["edge_tags"]["10"]["length"] == pytest.approx(2.0)
     assert d["bounding_box"] == {"xmin": 0.0, "ymin": 0.0, "xmax": 2.0, "ymax": 1.0}
     text = run("info", DATA / "two_regions_41.msh").stdout
-    assert "conforming            yes" in text and "edge tags             10:" in text
+    assert "conforming            yes" in text and "edge tags             10 (bottom):" in text
+    assert d["edge_tags"]["20"]["name"] == "interface"  # Gmsh physical names label the tags
 
 
 def test_quality_json_and_histogram(tmp_path, run):

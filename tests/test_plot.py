@@ -111,3 +111,19 @@ def test_compared_schemes_differ_in_line_style_and_marker():
     assert len({line.get_markersize() for line in lines}) == 3
     assert all(line.get_markerfacecolor() == "none" for line in lines)
     assert {line.get_color() for line in lines} <= set(plot.PALETTE)
+
+
+def test_physical_names_label_the_tags():
+    """Gmsh physical names, where the mesh has them, label edge tags in the legend, cell
+    tags on the colour bar and both in the info report (text and JSON)."""
+    m = examples.gmsh_mesh("step")
+    ax = plot.mesh(m, color="tag")
+    labels = [c.get_label() for c in ax.collections if not c.get_label().startswith("_")]
+    assert labels == ["edge tag 1 (inlet)", "edge tag 2 (outlet)", "edge tag 3 (wall)"]
+    bar = ax.figure.axes[-1]
+    assert [t.get_text() for t in bar.get_yticklabels()] == ["1 (inlet region)", "2 (channel)"]
+    info = report.info(m)
+    assert info["cell_tags"]["2"]["name"] == "channel" and "name" in info["edge_tags"]["3"]
+    text = report.format_info(info)
+    assert "1 (inlet region): 225 triangles" in text and "3 (wall): 86 edges" in text
+    assert "name" not in report.info(examples.plate_with_hole())["cell_tags"]["1"]

@@ -77,6 +77,12 @@ def _choice(value: str, choices: Sequence[str], name: str) -> str:
     return value
 
 
+def _named(m: Mesh, dim: int, tag: int) -> str:
+    """``"2"``, or ``"2 (hole)"`` where the mesh names the tag (Gmsh physical names)."""
+    name = (m.physical_names or {}).get((dim, tag))
+    return str(tag) if name is None else f"{tag} ({name})"
+
+
 def edge_chains(edges: NDArray[np.integer]) -> list[NDArray[np.int64]]:
     """The edges ``(K, 2)`` (vertex ids, either direction) joined into chains of vertex
     ids: each edge in exactly one chain, chains broken where a vertex has other than two
@@ -132,6 +138,7 @@ def mesh(m: Mesh, ax: Axes | None = None, *, color: str = "min-angle",
     """
     import matplotlib.colors as mcolors
     from matplotlib.collections import LineCollection
+    from matplotlib.transforms import offset_copy
     from matplotlib.tri import Triangulation
 
     _choice(color, COLORS, "color")
@@ -163,7 +170,7 @@ def mesh(m: Mesh, ax: Axes | None = None, *, color: str = "min-angle",
                            norm=norm, edgecolors=edgecolor, linewidth=lw)
         if colorbar:
             cb = ax.figure.colorbar(art, ax=ax, shrink=0.85, ticks=np.arange(len(tags)))
-            cb.ax.set_yticklabels([str(int(v)) for v in tags])
+            cb.ax.set_yticklabels([_named(m, 2, int(v)) for v in tags])
             cb.set_label("cell tag")
     else:
         ax.triplot(tri, color="0.2", linewidth=max(lw, 0.2))
@@ -176,9 +183,11 @@ def mesh(m: Mesh, ax: Axes | None = None, *, color: str = "min-angle",
             ax.add_collection(LineCollection(mine, colors="white", linewidths=3.6))
             ax.add_collection(LineCollection(mine, colors="black", linewidths=2.0,
                                              linestyles=[LINE_STYLES[i % len(LINE_STYLES)]],
-                                             label=f"edge tag {int(tag)}"))
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), ncols=4, frameon=False,
-                  fontsize="small")
+                                             label=f"edge tag {_named(m, 1, int(tag))}"))
+        # below the tick labels and the axis label, whatever the axes' height
+        below = offset_copy(ax.transAxes, fig=ax.figure, y=-34, units="points")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), bbox_transform=below,
+                  ncols=4, frameon=False, fontsize="small")
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.set_xlabel("x")

@@ -63,7 +63,7 @@ def info(mesh: Mesh) -> dict[str, Any]:
         tags, inv = np.unique(np.asarray(mesh.cell_tags), return_inverse=True)
         inv = inv.reshape(-1)
         out["cell_tags"] = {
-            str(int(t)): {"triangles": int(c), "area": float(a)}
+            str(int(t)): _named({"triangles": int(c), "area": float(a)}, mesh, 2, int(t))
             for t, c, a in zip(tags, np.bincount(inv), np.bincount(inv, weights=area),
                                strict=True)}
     if mesh.edges is not None:
@@ -72,10 +72,20 @@ def info(mesh: Mesh) -> dict[str, Any]:
         seg = p[mesh.edges[:, 1]] - p[mesh.edges[:, 0]]
         length = np.hypot(seg[:, 0], seg[:, 1])
         out["edge_tags"] = {
-            str(int(t)): {"edges": int(c), "length": float(s)}
+            str(int(t)): _named({"edges": int(c), "length": float(s)}, mesh, 1, int(t))
             for t, c, s in zip(tags, np.bincount(inv), np.bincount(inv, weights=length),
                                strict=True)}
     return out
+
+
+def _named(entry: dict[str, Any], mesh: Mesh, dim: int, tag: int) -> dict[str, Any]:
+    """``entry`` with the tag's physical name (``"name"``) where the mesh has one."""
+    name = (mesh.physical_names or {}).get((dim, tag))
+    return entry if name is None else {"name": name, **entry}
+
+
+def _tag_label(tag: str, entry: dict[str, Any]) -> str:
+    return f"{tag} ({entry['name']})" if "name" in entry else tag
 
 
 def quality(mesh: Mesh, *, bin_width: float = 2.5,
@@ -166,13 +176,13 @@ def format_info(d: dict[str, Any]) -> str:
         lines.append("cell tags             none")
     else:
         lines.append("cell tags             " + ", ".join(
-            f"{t}: {v['triangles']} triangles, area {v['area']:.6g}"
+            f"{_tag_label(t, v)}: {v['triangles']} triangles, area {v['area']:.6g}"
             for t, v in d["cell_tags"].items()))
     if d["edge_tags"] is None:
         lines.append("edge tags             none")
     else:
         lines.append("edge tags             " + ", ".join(
-            f"{t}: {v['edges']} edges, length {v['length']:.6g}"
+            f"{_tag_label(t, v)}: {v['edges']} edges, length {v['length']:.6g}"
             for t, v in d["edge_tags"].items()))
     return "\n".join(lines)
 

@@ -88,12 +88,13 @@ def _run(args: argparse.Namespace) -> int:
         write(files[0], mesh)
         write(files[1], fine)
         progress.step("drawing")
+        levels = _common.counted(args.levels, "level")
         ax = plot_mesh(fine, color="min-angle",
-                       title=f"Plate with a hole, 7T-QD, {args.levels} levels: "
+                       title=f"Plate with a hole, 7T-QD, {levels}: "
                              f"{fine.n_triangles} triangles")
         _common.save_figure(ax.figure, files[2])
         progress.step("writing the report")
-        text = (f"{files[1].name}: the example refined by 7t-qd, {args.levels} levels\n\n"
+        text = (f"{files[1].name}: the example refined by 7t-qd, {levels}\n\n"
                 + report.format_info(report.info(fine)) + "\n\n"
                 + report.format_quality(report.quality(fine)) + "\n")
         _common.write_text(files[3], text)
