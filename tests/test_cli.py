@@ -128,6 +128,9 @@ def test_compare_json_and_plot(tmp_path, run):
     assert red[0] == red[1] == red[2]  # red refinement makes no new shapes
     assert png.read_bytes()[:4] == b"\x89PNG"
     assert result.stderr.endswith(f"{png}: 2 schemes over 2 levels written\n")
+    commas = run("compare", DATA / "two_regions_22.msh", "--levels", "2", "--schemes",
+                 "7T-QD,4t-red", "--json")  # commas, any case: the same rows
+    assert json.loads(commas.stdout)["rows"] == rows
 
 
 # error paths ------------------------------------------------------------------------------
@@ -196,12 +199,16 @@ def test_bad_input_through_the_entry_point(tmp_path):
     (["refine", "IN.msh", "OUT.msh", "--levels", "x"], "expected a whole number"),
     (["refine", "IN.msh", "OUT.msh", "--levels", "-1"], "expected a number >= 0"),
     (["refine", "IN.msh", "OUT.msh", "--scheme", "8t"], "unknown scheme '8t'"),
-    (["refine", "IN.msh", "OUT.abc"], "unknown mesh format '.abc'"),
+    (["refine", "IN.msh", "OUT.abc"], "unknown file format (extension '.abc')"),
+    (["refine", "IN.msh", "OUT"], "OUT: unknown file format (no extension)"),
+    (["coarsen", "IN.msh", "OUT.msh", "--all", "--scheme", "7tqd"], "argument --scheme: "
+                                                                   "unknown scheme '7tqd'"),
     (["refine", "IN.msh", "IN.msh"], "would overwrite the input"),
     (["refine", "IN.msh", "nodir/OUT.msh"], "does not exist"),
     (["plot", "IN.msh", "p.jpg"], "pictures are saved as"),
     (["plot", "IN.msh", "p.png", "--color", "pink"], "invalid choice"),
     (["compare", "IN.msh", "--schemes", "7t-qd", "zz"], "unknown scheme 'zz'"),
+    (["compare", "IN.msh", "--schemes", "7t-qd,zz"], "unknown scheme 'zz'"),
     (["quality", "IN.msh", "--tolerance", "0"], "expected a number > 0"),
 ])
 def test_bad_arguments(tmp_path, monkeypatch, capsys, argv, message):

@@ -103,6 +103,21 @@ def counted(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
+def scheme_name(text: str) -> str:
+    """argparse type: a scheme's name (any case), as :func:`qdrefine.get_scheme` spells it."""
+    from ..schemes import get_scheme
+
+    try:
+        return get_scheme(text).name
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def scheme_names_list(text: str) -> list[str]:
+    """argparse type: one scheme name or several separated by commas."""
+    return [scheme_name(name) for name in text.split(",") if name]
+
+
 def non_negative(text: str) -> int:
     """argparse type: an integer >= 0."""
     try:
@@ -164,7 +179,8 @@ def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
         raise ValueError(f"{out}: expected a Zarr mesh store (a name ending in {STORE})")
     elif kinds in ("mesh", "any"):
         if out.suffix.lower() not in FORMATS:
-            raise ValueError(f"{out}: unknown mesh format '{out.suffix}'; known extensions: "
+            what = f"extension '{out.suffix}'" if out.suffix else "no extension"
+            raise ValueError(f"{out}: unknown file format ({what}); known extensions: "
                              f"{', '.join(FORMATS)}")
         if binary and FORMATS[out.suffix.lower()].binary is None:
             raise ValueError(f"{out}: {FORMATS[out.suffix.lower()].name} files have no binary "

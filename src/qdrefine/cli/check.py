@@ -25,7 +25,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-angle", type=_common.positive_float, default=MIN_ANGLE,
                         metavar="DEG",
                         help=f"warn about triangles with a smaller angle (default {MIN_ANGLE:g})")
-    parser.add_argument("--scheme", default="7t-qd", metavar="NAME",
+    parser.add_argument("--scheme", default="7t-qd", metavar="NAME", type=_common.scheme_name,
                         help="warn about triangles that refining by this scheme would refuse "
                         "(too thin for float64 children; default 7t-qd)")
 

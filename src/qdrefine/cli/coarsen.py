@@ -11,7 +11,7 @@ import numpy as np
 
 from ..adaptive import coarsen_marked
 from ..io import mesh_of, read_raw
-from ..schemes import get_scheme, scheme_names
+from ..schemes import scheme_names
 from . import _common, marks
 
 HELP = "undo local refinement where every child of a partition is marked"
@@ -26,7 +26,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                      "fine.msh coarse.msh --mark-box 0,0,0.5,1; qdrefine coarsen fine.msh "
                      "coarse.msh --all --cycles 3")
     _common.add_mesh_in_out(parser, lambda: parser.add_argument(
-        "--scheme", default="7t-qd", metavar="NAME",
+        "--scheme", default="7t-qd", metavar="NAME", type=_common.scheme_name,
         help=f"the scheme IN was refined with: one of {', '.join(scheme_names())} "
              "(default 7t-qd)"))
     group = parser.add_argument_group("marks", "The triangles that may go (one is needed).")
@@ -43,9 +43,9 @@ def compiled(args: argparse.Namespace) -> tuple[str, ...]:  # noqa: ARG001
     """The modules whose kernels coarsening compiles on a first run."""
     return ("kernels", "adaptive.red_families")
 
+
 def run(args: argparse.Namespace) -> int:
     with _common.session():
-        args.scheme = get_scheme(args.scheme).name  # any case; unknown fails before reading
         _common.check_mesh_output(args)
         cycles = 1 if args.cycles is None else args.cycles
         start = time.perf_counter()

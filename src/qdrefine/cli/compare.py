@@ -7,7 +7,7 @@ import argparse
 from .. import report
 from ..io import read
 from ..quality import SIMILARITY_TOLERANCE
-from ..schemes import get_scheme, scheme_names
+from ..schemes import scheme_names
 from . import _common
 
 HELP = "refine with several schemes level by level: min angle, mean, similarity classes"
@@ -23,7 +23,9 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                         help="refinement levels (default 2; 7T schemes multiply the triangles "
                              "by 7 per level)")
     parser.add_argument("--schemes", nargs="+", metavar="NAME", default=None,
-                        help=f"schemes to compare (default all: {' '.join(scheme_names())})")
+                        type=_common.scheme_names_list,
+                        help=f"schemes to compare, by spaces or commas (default all: "
+                             f"{' '.join(scheme_names())})")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--plot", metavar="FILE.png",
                         help="also save a plot of the three figures against the level")
@@ -34,9 +36,8 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     with _common.session():
-        schemes = args.schemes or scheme_names()
-        for name in schemes:
-            get_scheme(name)  # an unknown name fails here, before any file is read
+        schemes = [name for names in args.schemes for name in names] if args.schemes \
+            else scheme_names()
         if args.plot:
             _common.check_output(args.plot, (args.input,), kinds="picture")
         mesh = read(args.input)

@@ -28,7 +28,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                      "in.msh out.msh --levels 2; qdrefine refine in.msh out.msh --mark-box "
                      "0,0,0.1,0.1 --cycles 5")
     _common.add_mesh_in_out(parser, lambda: parser.add_argument(
-        "--scheme", default="7t-qd", metavar="NAME",
+        "--scheme", default="7t-qd", metavar="NAME", type=_common.scheme_name,
         help=f"one of {', '.join(scheme_names())} (default 7t-qd)"))
     parser.add_argument("--levels", type=_common.non_negative, default=None, metavar="N",
                         help="refine every triangle N times (default 1; 7T schemes multiply "
@@ -50,7 +50,6 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     with _common.session():
-        args.scheme = get_scheme(args.scheme).name  # any case; unknown fails before reading
         steps = _check_options(args)
         if args.dask is not None:
             return _on_dask(args)
