@@ -14,6 +14,7 @@ point data), :mod:`.overlap` (marked transition children), :mod:`.families`,
 from .api import as_mask, refine_cycles, refine_marked
 from .coarsen import coarsen, coarsen_marked
 from .families import Families
+from .history import HistoryMismatch
 from .labels import canonical_edges, canonical_labels
 from .longest_edge import closure
 from .patterns import TRANSITIONS
@@ -24,6 +25,7 @@ __all__ = [
     "coarsen_marked",
     "refine_cycles",
     "Families",
+    "HistoryMismatch",
     "closure",
     "canonical_labels",
     "canonical_edges",

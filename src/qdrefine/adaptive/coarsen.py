@@ -85,11 +85,7 @@ def coarsen_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd"
     mask = as_mask(marked, mesh.n_triangles)
     check_needed(local_memory_needed(n_working=mesh.n_triangles, n_output=mesh.n_triangles),
                  f"coarsening {mesh.n_triangles} triangles")
-    try:
-        work, fam, order = families_of(mesh, sch.stencil.per_edge)
-    except ValueError as exc:
-        raise ValueError(f"{exc} (or coarsen with the scheme the mesh was refined with; "
-                         f"this was {sch.name})") from None
+    work, fam, order = families_of(mesh, sch.stencil.per_edge)
     if order is not None:
         mask = mask[order]
     base = np.arange(mesh.n_triangles, dtype=np.int64) if order is None else order

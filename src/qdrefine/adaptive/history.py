@@ -22,6 +22,18 @@ from .patterns import canonical_corners, pattern_stencil, stencil_coordinates
 from .working import with_edge_points
 
 
+class HistoryMismatch(ValueError):
+    """A mesh's refinement history (:attr:`~qdrefine.Mesh.transitions`) does not fit its
+    points for the scheme at hand: made by a scheme with other points, or changed since.
+    ``detail`` says where."""
+
+    def __init__(self, detail: str) -> None:
+        self.detail = detail
+        super().__init__(f"transitions: {detail} (refine and coarsen with the scheme the "
+                         "mesh was refined with, or drop the history: "
+                         "mesh.replace(transitions=None))")
+
+
 def families_of(mesh: Mesh, k: int) -> tuple[Mesh, Families, NDArray[np.int64] | None]:
     """Transition families of ``mesh`` for a scheme with ``k`` points per edge.
 
@@ -36,9 +48,9 @@ def families_of(mesh: Mesh, k: int) -> tuple[Mesh, Families, NDArray[np.int64] |
 
     Raises
     ------
-    ValueError
-        When a family's members do not tile its parent with the pattern points the
-        refinement would have made (a history that does not belong to these points).
+    HistoryMismatch
+        A ``ValueError``: a family's members do not tile its parent with the pattern points
+        the refinement would have made (a history that does not belong to these points).
     """
     rows = mesh.transitions
     m = mesh.n_triangles
@@ -189,16 +201,15 @@ def _stencils(mesh: Mesh, parent_rows: NDArray[np.int64], member: NDArray[np.int
     found = hit.any(axis=1)
     if not found.all():
         bad = int(np.flatnonzero(member == fam[~found][0])[0])
-        raise ValueError(f"transitions: triangle {bad} is marked as a transition child, but "
-                         f"point {int(vert[~found][0])} is not a point the refinement makes "
-                         "on its parent (pass mesh.replace(transitions=None) to drop the "
-                         "history)")
+        raise HistoryMismatch(f"triangle {bad} is marked as a transition child, but point "
+                              f"{int(vert[~found][0])} is not a point the refinement makes "
+                              "on its parent")
     stencil[fam, 3 + np.argmax(hit, axis=1)] = vert
     edge_pts = stencil[:, 3: 3 + 3 * k].reshape(f, 3, k)
     if ((edge_pts >= 0).any(axis=2) != (edge_pts >= 0).all(axis=2)).any():
         bad = int(np.flatnonzero(((edge_pts >= 0).any(axis=2)
                                   != (edge_pts >= 0).all(axis=2)).any(axis=1))[0])
-        raise ValueError(f"transitions: the family of triangle "
-                         f"{int(np.flatnonzero(member == bad)[0])} has an edge with only "
-                         "some of its points")
+        raise HistoryMismatch(f"the family of triangle "
+                              f"{int(np.flatnonzero(member == bad)[0])} has an edge with only "
+                              "some of its points")
     return stencil

@@ -98,6 +98,14 @@ def check_format_version(path: str, version: str | None) -> None:
         raise ValueError(f"{path}: --format-version applies to Gmsh .msh output only")
 
 
+def history_mismatch(path: str, scheme: str, exc: Any) -> ValueError:
+    """One line for a file whose refinement history does not fit ``scheme``
+    (:class:`qdrefine.adaptive.HistoryMismatch` ``exc``), in the command line's terms."""
+    return ValueError(f"{path}: its refinement history (cell data qdrefine:transitions) does "
+                      f"not fit scheme {scheme}: {exc.detail}; refine and coarsen it with the "
+                      "scheme it was refined with")
+
+
 def counted(n: int, noun: str) -> str:
     """``"1 triangle"``, ``"2 triangles"``: a count with its noun, plural unless one."""
     return f"{n} {noun}{'' if n == 1 else 's'}"

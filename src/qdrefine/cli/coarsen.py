@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from ..adaptive import coarsen_marked
+from ..adaptive import HistoryMismatch, coarsen_marked
 from ..io import mesh_of, read_raw
 from ..schemes import scheme_names
 from . import _common, marks
@@ -64,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
                 progress.step(f"coarsening, cycle {cycle}/{cycles}")
                 try:
                     mesh, step = coarsen_marked(mesh, mark(mesh, parents), args.scheme)
+                except HistoryMismatch as exc:
+                    raise _common.history_mismatch(args.input, args.scheme, exc) from None
                 except ValueError as exc:  # e.g. a tagged piece refinement did not cut
                     raise ValueError(f"{args.input}: {exc}") from None
                 parents = parents[step]

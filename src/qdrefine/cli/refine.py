@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from ..adaptive import refine_marked
+from ..adaptive import HistoryMismatch, refine_marked
 from ..io import RawMesh, mesh_of, read_raw
 from ..memory import check_memory
 from ..mesh import Mesh
@@ -61,6 +61,8 @@ def run(args: argparse.Namespace) -> int:
             mesh = mesh_of(raw)
             try:
                 fine, summary = _refiner(args)(mesh, args, progress, raw)
+            except HistoryMismatch as exc:
+                raise _common.history_mismatch(args.input, args.scheme, exc) from None
             except ValueError as exc:  # e.g. a triangle too thin for float64 children
                 if str(exc).startswith(f"{args.input}:"):
                     raise
