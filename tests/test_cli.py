@@ -28,6 +28,12 @@ def test_demo_prints_a_summary_and_writes_files(tmp_path, capsys):
     for scheme in ("7t-qd", "7t-le", "7t-d", "4t-le", "4t-red"):
         assert scheme in out
     assert " NO " not in out
+    # the schemes that gave the same meshes say so (measured here, not assumed)
+    same = [[line.split(":")[0] for line in out.splitlines() if "the same meshes" in line]]
+    finest = {s: qdrefine.refine(examples.plate_with_hole(), s) for s in qdrefine.scheme_names()}
+    equal = [s for s in finest if np.array_equal(finest[s].triangles, finest["7t-qd"].triangles)
+             and np.array_equal(finest[s].points, finest["7t-qd"].points)]
+    assert same == [[", ".join(equal)]] if len(equal) > 1 else same == [[]]
     files = sorted(p.name for p in (tmp_path / "out").iterdir())
     assert files == ["plate_with_hole.msh", "plate_with_hole_7t-qd.msh",
                      "plate_with_hole_7t-qd.png", "report.txt"]

@@ -10,6 +10,7 @@ import numpy as np
 
 from .. import examples, report
 from ..io import write
+from ..mesh import Mesh
 from ..plot import mesh as plot_mesh
 from ..quality import min_angles
 from ..refine import refine
@@ -68,18 +69,23 @@ def _run(args: argparse.Namespace) -> int:
     say("-" * len(header))
     chi0 = euler_characteristic(mesh)
     names = scheme_names()
+    finest = {}
     with _common.Progress(len(names) * args.levels + 3, args.quiet) as progress:
         for name in names:
             fine = mesh
             for level in range(1, args.levels + 1):
                 progress.step(f"{name}, level {level}")
                 fine = refine(fine, name)
+                finest[name] = fine
                 chi = euler_characteristic(fine)
                 ok = conformity(fine).ok and chi == chi0
                 angles = min_angles(fine)
                 say(f"{name:8} {level:>5} {fine.n_triangles:>10} {fine.n_points:>9} "
                     f"{'yes' if ok else 'NO':>10} {chi:>5} "
                     f"{angles.min():>9.3f} {np.mean(angles):>9.3f}")
+        for group in _same_meshes(finest):
+            say(f"{', '.join(group)}: the same meshes here (they choose differently only on "
+                "some shapes; docs/schemes.md)")
         progress.step("writing meshes")
         fine = refine(mesh, "7t-qd", args.levels)
         stem = "plate_with_hole_7t-qd"
@@ -101,6 +107,21 @@ def _run(args: argparse.Namespace) -> int:
     say("")
     say("wrote " + ", ".join(str(f) for f in files))
     return 0
+
+
+def _same_meshes(meshes: dict[str, Mesh]) -> list[list[str]]:
+    """Groups of two or more names whose meshes are equal (points and triangles)."""
+    groups: list[list[str]] = []
+    for name, m in meshes.items():
+        for group in groups:
+            first = meshes[group[0]]
+            if np.array_equal(first.points, m.points) and \
+                    np.array_equal(first.triangles, m.triangles):
+                group.append(name)
+                break
+        else:
+            groups.append([name])
+    return [g for g in groups if len(g) > 1]
 
 
 def _afem(out: Path, cycles: int, say, quiet: bool) -> int:
