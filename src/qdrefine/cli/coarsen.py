@@ -72,9 +72,10 @@ def run(args: argparse.Namespace) -> int:
             progress.step(f"writing {args.output}")
             _common.write_mesh(args, mesh)
         if not args.quiet:
-            print(f"{args.output}: {mesh.n_triangles} triangles, {mesh.n_points} points "
-                  f"({n0 - mesh.n_triangles} fewer by {args.scheme} in {cycles} "
-                  f"cycle{'s' if cycles != 1 else ''}, {time.perf_counter() - start:.2f} s)")
+            print(f"{args.output}: {_common.counted(mesh.n_triangles, 'triangle')}, "
+                  f"{_common.counted(mesh.n_points, 'point')} ({n0 - mesh.n_triangles} fewer by "
+                  f"{args.scheme} in {_common.counted(cycles, 'cycle')}, "
+                  f"{time.perf_counter() - start:.2f} s in all)")
             if mesh.n_triangles == n0 and cycles:
                 print(f"qdrefine: note: no partition of {args.input} had all its children "
                       f"marked (was it refined with {args.scheme}? see --scheme)",

@@ -59,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
             progress.step(f"reading {args.input}")
             raw = read_raw(args.input)
             mesh = mesh_of(raw)
+            read_s, start = time.perf_counter() - start, time.perf_counter()
             try:
                 fine, summary = _refiner(args)(mesh, args, progress, raw)
             except HistoryMismatch as exc:
@@ -67,11 +68,14 @@ def run(args: argparse.Namespace) -> int:
                 if str(exc).startswith(f"{args.input}:"):
                     raise
                 raise ValueError(f"{args.input}: {exc}") from None
+            refine_s, start = time.perf_counter() - start, time.perf_counter()
             progress.step(f"writing {args.output}")
             _common.write_mesh(args, fine)
+            write_s = time.perf_counter() - start
         if not args.quiet:
-            print(f"{args.output}: {fine.n_triangles} triangles, {fine.n_points} points "
-                  f"({summary}, {time.perf_counter() - start:.2f} s)")
+            print(f"{args.output}: {_common.counted(fine.n_triangles, 'triangle')}, "
+                  f"{_common.counted(fine.n_points, 'point')} ({summary}; read {read_s:.2f} s, "
+                  f"refined {refine_s:.2f} s, written {write_s:.2f} s)")
     return 0
 
 
@@ -167,5 +171,5 @@ def _local(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress,
         n_marked += int(marked.sum())
         mesh, step = refine_marked(mesh, marked, args.scheme)
         parents = parents[step]
-    return mesh, (f"{n_marked} triangles marked, {mesh.n_triangles - n0} added by "
-                  f"{args.scheme} in {cycles} cycle{'s' if cycles != 1 else ''}")
+    return mesh, (f"{_common.counted(n_marked, 'triangle')} marked, {mesh.n_triangles - n0} "
+                  f"added by {args.scheme} in {_common.counted(cycles, 'cycle')}")
