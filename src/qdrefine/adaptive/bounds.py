@@ -26,13 +26,13 @@ from .labels import MN, NO, OM, canonical_labels
 from .patterns import PARTIAL, min_angles, quality, stencil_coordinates
 from .rounds import full_quality, upgraded
 
-#: Shapes closer than this (in the normalised frame of the mapping diagram) are one class.
-SHAPE_DIGITS = 8
+#: Apexes (in the normalised frame of the mapping diagram) equal to this many significant
+#: bits per coordinate are one shape class (about 9 significant digits).
+SHAPE_BITS = 30
 
-#: The bound is lowered by this fraction: shapes are tracked rounded to
-#: :data:`SHAPE_DIGITS` digits, so a class's angles can sit above those of the triangles
-#: it stands for (by 5e-9 relative on the Gmsh L-shape with 4T-LE, found by a review's fuzz
-#: run; 200 times less than this margin).
+#: The bound is lowered by this fraction: a class's angles are within about
+#: ``2 ** -SHAPE_BITS`` (1e-9) of those of the triangles it stands for, relative to
+#: themselves, and refinement carries such differences to the children.
 ROUNDING_MARGIN = 1e-6
 
 
@@ -144,7 +144,7 @@ def quality_bound(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 10
                   ) -> QualityBound:
     """A lower bound on the smallest angle of any adaptive refinement of ``mesh``, with
     transitions ``levels`` deep at most: the red shapes are the similarity classes of the
-    uniform refinements of its triangles (shapes equal to :data:`SHAPE_DIGITS` digits in
+    uniform refinements of its triangles (shapes equal to :data:`SHAPE_BITS` bits in
     the normalised frame are one class), and each class's transitions are evaluated with
     the upgrade rule. Exact within the classes enumerated; beyond ``levels`` the new
     classes are few (``classes`` shows it) and have not lowered the minimum in our
@@ -174,7 +174,14 @@ def quality_bound(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 10
 
 
 def _classes(xy: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.unique(np.round(xy, SHAPE_DIGITS), axis=0)
+    """The distinct apexes ``xy (K, 2)`` rounded to :data:`SHAPE_BITS` significant bits per
+    coordinate: relative, so that every angle of a class's representative is within about
+    ``2 ** -SHAPE_BITS`` of its members' relative to itself, however thin the shape (a
+    rounding to a fixed number of decimals moved the angles of thin shapes by 1e-4 of
+    themselves)."""
+    mantissa, exponent = np.frexp(xy)
+    return np.unique(np.ldexp(np.round(np.ldexp(mantissa, SHAPE_BITS)), exponent - SHAPE_BITS),
+                     axis=0)
 
 
 def _member(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.bool_]:
