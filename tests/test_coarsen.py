@@ -282,3 +282,34 @@ def test_tagged_pieces_in_any_order_are_joined():
     got = sorted(zip(map(tuple, back.edges.tolist()), back.edge_tags.tolist(), strict=True))
     want = sorted(zip(map(tuple, base.edges.tolist()), base.edge_tags.tolist(), strict=True))
     assert got == want
+
+
+def test_history_rows_of_a_mirrored_mesh(tmp_path):
+    """History rows are counter-clockwise like triangles: a Mesh built with clockwise ones
+    is refused with one line; a mirrored file (its triangles flipped on reading, with a
+    warning) has them flipped too, so coarsening it gives counter-clockwise triangles (its
+    restored triangles take their origin's row only as a rotation, never a reflection)."""
+    import warnings
+
+    import meshio
+
+    from qdrefine import read, write
+
+    base = examples.gmsh_mesh("plate_with_hole")
+    fine = refine(base, "7t-qd", marked=marking.mark_random(base, 0.2, seed=1))
+    with pytest.raises(ValueError, match=r"origins: row 0 \(.*\) is clockwise or flat"):
+        Mesh(fine.points, fine.triangles, origins=fine.origins[:, ::-1])
+    write(tmp_path / "fine.vtu", fine)
+    mirrored = meshio.read(tmp_path / "fine.vtu")
+    mirrored.points[:, 0] *= -1
+    meshio.write(tmp_path / "mirrored.vtu", mirrored)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the flipped triangles are reported
+        back = read(tmp_path / "mirrored.vtu")
+    assert back.transitions is not None and back.origins is not None
+    out = _all_the_way_back(back, "7t-qd")
+    assert (_twice_areas(out) > 0).all()
+    assert out.n_triangles == base.n_triangles
+    expected = base.points * [-1.0, 1.0]
+    assert sorted(map(tuple, np.sort(expected[base.triangles], axis=1).reshape(-1, 6).tolist())) \
+        == sorted(map(tuple, np.sort(out.points[out.triangles], axis=1).reshape(-1, 6).tolist()))

@@ -12,6 +12,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .check import find, index_dtype
 from .numbering import EdgeBuckets, edge_ids
+from .predicates import orient_signs
 
 __all__ = ["Mesh", "edge_ids", "index_dtype"]
 
@@ -76,6 +77,28 @@ def _origins(rows: ArrayLike | None, triangles: NDArray, n_points: int
     if a is not None and a.size and (a.min() < 0 or a.max() >= n_points):
         raise ValueError(f"origins: vertex ids must be in 0..{n_points - 1}")
     return a
+
+
+def counter_clockwise_history(points: NDArray[np.float64], rows: NDArray[np.int64] | None,
+                              name: str, flip: bool = False) -> NDArray[np.int64] | None:
+    """History rows ``(M, 3)`` (``transitions`` or ``origins``; ``-1`` rows skipped) checked
+    counter-clockwise by the exact predicate: clockwise ones flipped where ``flip`` (a
+    mirrored file, whose triangles are flipped too), else a ``ValueError`` naming the first
+    (triangles that refinement restores from these rows would be clockwise)."""
+    if rows is None or not rows.size:
+        return rows
+    used = np.flatnonzero(rows[:, 0] >= 0)
+    sign = orient_signs(np.ascontiguousarray(points, dtype=np.float64), rows[used])
+    bad = used[sign <= 0]
+    if not bad.size:
+        return rows
+    if flip and (sign < 0).sum() == bad.size:
+        rows = rows.copy()
+        rows[bad] = rows[bad][:, [0, 2, 1]]
+        return rows
+    r = int(bad[0])
+    raise ValueError(f"{name}: row {r} {tuple(int(v) for v in rows[r])} is clockwise or flat; "
+                     "history rows are counter-clockwise vertex rows")
 
 
 def _rows_of(rows: ArrayLike | None, triangles: NDArray, name: str
@@ -161,8 +184,9 @@ class Mesh:
         fields["point_data"] = _data(self.point_data, n, "point_data", "points")
         fields["cell_data"] = _data(self.cell_data, m, "cell_data", "triangles")
         fields["physical_names"] = _names(self.physical_names)
-        fields["transitions"] = _transitions(self.transitions, fields["triangles"], n)
-        fields["origins"] = _origins(self.origins, fields["triangles"], n)
+        for name, check in (("transitions", _transitions), ("origins", _origins)):
+            rows = check(getattr(self, name), fields["triangles"], n)
+            fields[name] = counter_clockwise_history(fields["points"], rows, name)
         for name, value in fields.items():
             object.__setattr__(self, name, _readonly(value))
 

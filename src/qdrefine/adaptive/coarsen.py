@@ -159,13 +159,15 @@ def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
 
 
 def _origin_rows(out: Mesh, fam: Families, origins: NDArray[np.int64]) -> Mesh:
-    """``out`` with every triangle that is its own origin (the same three points) written
+    """``out`` with every triangle that is its own origin (its row rotated) written
     as the origin's row, its rotation included (a restored triangle's row otherwise starts
     at its canonical first vertex), so that coarsening everything gives the input's rows
     back; ``origins (M', 3)`` in ``out``'s point ids."""
     rows = out.triangles
-    same = (np.sort(rows, axis=1) == np.sort(origins, axis=1)).all(axis=1) & (fam.member < 0)
-    same &= (rows != origins).any(axis=1)
+    rotations = [np.roll(origins, shift, axis=1) for shift in (1, 2)]
+    # a rotation of the row, never a reflection: the origin row is counter-clockwise too
+    same = ((rows == rotations[0]).all(axis=1) | (rows == rotations[1]).all(axis=1)) \
+        & (fam.member < 0)
     if not same.any():
         return out
     rows = rows.copy()
