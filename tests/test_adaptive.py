@@ -920,3 +920,19 @@ def test_kept_families_are_the_ones_the_history_rebuilds(name, scheme):
     assert kept_seen >= 3
     mesh.transitions.flags.writeable = True  # a user who breaks immutability on purpose
     assert families_of(mesh, k)[1] is not mesh.__dict__["_families"]
+
+
+def test_origins_naming_a_removed_centroid_are_refused():
+    """Origins set by hand to rows that name a transition's centroid (which the next
+    refinement removes when it coarsens that transition) give one clear error, not origin
+    rows with -1 (or, before, another point's id) in the output."""
+    from qdrefine.marking import mark_random
+
+    base = examples.gmsh_mesh("plate_with_hole")
+    fine = refine(base, "7t-qd", marked=mark_random(base, 0.1, seed=3))
+    anew = fine.replace(origins=fine.triangles)
+    green = np.flatnonzero(anew.transitions[:, 0] >= 0)
+    with pytest.raises(ValueError, match="names the centroid of a transition"):
+        refine(anew, "7t-qd", marked=green[::5])
+    again = refine(fine, "7t-qd", marked=green[::5])  # the history as refinement left it
+    assert again.origins.min() >= 0

@@ -148,6 +148,9 @@ def test_an_integer_mask_is_not_taken_for_indices(tmp_path):
     np.save(tmp_path / "m.npy", mask)
     with pytest.raises(ValueError, match=r"m\.npy: .* all 0 or 1, one per triangle"):
         mark_file(mesh, tmp_path / "m.npy")
+    (tmp_path / "m.txt").write_text("\n".join(map(str, mask)) + "\n")
+    with pytest.raises(ValueError, match=r"m\.txt: .* all 0 or 1, one per triangle"):
+        mark_file(mesh, tmp_path / "m.txt")
     fine = qdrefine.refine(mesh, marked=mask.astype(bool))
     assert fine.n_triangles > mesh.n_triangles + 300
     assert np.array_equal(qdrefine.refine(mesh, marked=[0, 1]).triangles,

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .adaptive import as_mask
+from .adaptive.api import is_integer_mask
 from .mesh import Mesh
 
 __all__ = ["mark_ids", "mark_mask", "mark_tag", "mark_region", "mark_box", "mark_point",
@@ -79,7 +80,7 @@ def mark_file(mesh: Mesh, path: str | PathLike[str]) -> NDArray[np.bool_]:
     if path.suffix.lower() == ".npy":
         return _npy_marks(path, mesh.n_triangles)
     n = mesh.n_triangles
-    mask = np.zeros(n, dtype=bool)
+    ids = []
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
@@ -92,7 +93,11 @@ def mark_file(mesh: Mesh, path: str | PathLike[str]) -> NDArray[np.bool_]:
                 raise ValueError(f"{path}, line {line}: {word!r} is not a triangle id") from None
             if not 0 <= t < n:
                 raise ValueError(f"{path}, line {line}: triangle id {t} is outside 0..{n - 1}")
-            mask[t] = True
+            ids.append(t)
+    ids = np.array(ids, dtype=np.int64)
+    _not_a_mask(path, ids, n)
+    mask = np.zeros(n, dtype=bool)
+    mask[ids] = True
     return mask
 
 
@@ -113,10 +118,14 @@ def _npy_marks(path: Path, n: int) -> NDArray[np.bool_]:
     if bad.size:
         raise ValueError(f"{path}, entry {int(bad[0])}: triangle id {int(a[bad[0]])} is "
                          f"outside 0..{n - 1}")
-    if a.size == n > 2 and a.max(initial=0) <= 1:
+    _not_a_mask(path, a, n)
+    return as_mask(a, n)
+
+
+def _not_a_mask(path: Path, ids: NDArray[np.integer], n: int) -> None:
+    if is_integer_mask(ids, n):
         raise ValueError(f"{path}: {n} integers, all 0 or 1, one per triangle: a mask? Save "
                          "it as booleans (mask.astype(bool)) or as triangle ids")
-    return as_mask(a, n)
 
 
 def centroids(mesh: Mesh) -> NDArray[np.float64]:

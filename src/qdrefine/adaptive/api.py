@@ -22,6 +22,13 @@ from .step import Step
 from .window import windowed_step
 
 
+def is_integer_mask(ids: NDArray[np.integer], n_triangles: int) -> bool:
+    """Whether triangle ids ``(K,)`` are one 0 or 1 per triangle (``K = M > 2``, so ids
+    repeat): a mask stored as integers (e.g. read from a file), which as ids would mark
+    triangles 0 and 1 only."""
+    return ids.size == n_triangles > 2 and int(ids.min()) >= 0 and int(ids.max()) <= 1
+
+
 def as_mask(marked: ArrayLike, n_triangles: int) -> NDArray[np.bool_]:
     """A boolean mask ``(M,)`` from a mask or an array of triangle indices; ``ValueError``
     for ``M > 2`` integers all 0 or 1 (a mask stored as integers, not indices)."""
@@ -41,9 +48,7 @@ def as_mask(marked: ArrayLike, n_triangles: int) -> NDArray[np.bool_]:
     bad = (a < 0) | (a >= n_triangles)
     if bad.any():
         raise ValueError(f"marked index {int(a[bad][0])} is outside 0..{n_triangles - 1}")
-    if a.size == n_triangles > 2 and a.max() <= 1:
-        # one 0/1 per triangle, repeated indices: a mask stored as integers (e.g. read from
-        # a file), which as indices would mark triangles 0 and 1 only
+    if is_integer_mask(a, n_triangles):
         raise ValueError(f"marked: {a.size} integers, all 0 or 1, one per triangle: a mask "
                          "stored as integers? Pass it as booleans (marked.astype(bool)) or "
                          "as indices (np.flatnonzero(marked))")
@@ -139,6 +144,12 @@ def _origins(rows: NDArray[np.int64], parents: NDArray[np.int64],
     out = np.empty((parents.shape[0], 3), dtype=np.int64)
     with threads_for(parents.shape[0]):
         _gather_origins(rows, parents, point_map, out)
+    if out.size and out.min() < 0:  # only where given origins name a removed centroid
+        r = int(np.flatnonzero((out < 0).any(axis=1))[0])
+        raise ValueError(f"origins: the row of input triangle {int(parents[r])} names the "
+                         "centroid of a transition this refinement coarsens; origins are rows "
+                         "of the mesh local refinement started from (mesh.replace(origins="
+                         "None) starts the history anew)")
     return out
 
 
