@@ -78,9 +78,10 @@ def _choice(value: str, choices: Sequence[str], name: str) -> str:
 
 
 def _named(m: Mesh, dim: int, tag: int) -> str:
-    """``"2"``, or ``"2 (hole)"`` where the mesh names the tag (Gmsh physical names)."""
-    name = (m.physical_names or {}).get((dim, tag))
-    return str(tag) if name is None else f"{tag} ({name})"
+    """The tag as reports show it: ``"2"``, or ``"2 (hole)"`` where the mesh names it."""
+    from .report import physical_name, tag_label
+
+    return tag_label(tag, physical_name(m, dim, tag))
 
 
 def edge_chains(edges: NDArray[np.integer]) -> list[NDArray[np.int64]]:

@@ -78,14 +78,20 @@ def info(mesh: Mesh) -> dict[str, Any]:
     return out
 
 
+def physical_name(mesh: Mesh, dim: int, tag: int) -> str | None:
+    """The name of tag ``tag`` of dimension ``dim`` (2: cell tags, 1: edge tags), or None."""
+    return (mesh.physical_names or {}).get((dim, tag))
+
+
+def tag_label(tag: int | str, name: str | None) -> str:
+    """``"2"``, or ``"2 (hole)"`` for a named tag: how reports and plots show a tag."""
+    return str(tag) if name is None else f"{tag} ({name})"
+
+
 def _named(entry: dict[str, Any], mesh: Mesh, dim: int, tag: int) -> dict[str, Any]:
     """``entry`` with the tag's physical name (``"name"``) where the mesh has one."""
-    name = (mesh.physical_names or {}).get((dim, tag))
+    name = physical_name(mesh, dim, tag)
     return entry if name is None else {"name": name, **entry}
-
-
-def _tag_label(tag: str, entry: dict[str, Any]) -> str:
-    return f"{tag} ({entry['name']})" if "name" in entry else tag
 
 
 def quality(mesh: Mesh, *, bin_width: float = 2.5,
@@ -176,13 +182,13 @@ def format_info(d: dict[str, Any]) -> str:
         lines.append("cell tags             none")
     else:
         lines.append("cell tags             " + ", ".join(
-            f"{_tag_label(t, v)}: {v['triangles']} triangles, area {v['area']:.6g}"
+            f"{tag_label(t, v.get('name'))}: {v['triangles']} triangles, area {v['area']:.6g}"
             for t, v in d["cell_tags"].items()))
     if d["edge_tags"] is None:
         lines.append("edge tags             none")
     else:
         lines.append("edge tags             " + ", ".join(
-            f"{_tag_label(t, v)}: {v['edges']} edges, length {v['length']:.6g}"
+            f"{tag_label(t, v.get('name'))}: {v['edges']} edges, length {v['length']:.6g}"
             for t, v in d["edge_tags"].items()))
     return "\n".join(lines)
 

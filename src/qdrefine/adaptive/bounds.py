@@ -126,7 +126,8 @@ class QualityBound:
         as a fraction of the initial angle.
     upgraded : float
         ``min(red, transition) / initial`` where every transition the upgrade rule asks for
-        is made: what the loops on our examples reach (docs/adaptive.md); not guaranteed.
+        is made, lowered by :data:`ROUNDING_MARGIN` too: what the loops on our examples
+        reach (docs/adaptive.md); not guaranteed.
     classes : list of int
         Number of shape classes after each level (the growth tells how close the list is to
         all shapes that refinement ever makes).

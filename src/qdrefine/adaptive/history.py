@@ -107,7 +107,8 @@ def with_history(mesh: Mesh, families: Families, origins: NDArray | None = None)
 
 def _kept_families(mesh: Mesh, k: int) -> Families | None:
     """The families :func:`with_history` kept on ``mesh`` for a scheme with ``k`` points per
-    edge, or None: none kept, another ``k``, or an array made writeable again since."""
+    edge, or None: none kept, another ``k``, or an array of the mesh writeable now (an
+    array changed in place and locked again is not seen: meshes are immutable)."""
     kept = mesh.__dict__.get("_families")
     if kept is None or kept.per_edge != k or kept.member.shape[0] != mesh.n_triangles:
         return None
