@@ -42,7 +42,9 @@ def read(path: Path) -> RawMesh:
     return read_with_meshio(path, "xdmf", "XDMF")
 
 
-_HDF = re.compile(rb'Format="HDF"[^>]*>\s*([^<:\s]+):')
+#: The HDF5 file of a heavy-data item ``FILE:/dataset``: everything before the last ``:/``
+#: (a Windows drive letter or spaces in the name included).
+_HDF = re.compile(rb'Format="HDF"[^>]*>([^<]+):/[^<:]*<')
 
 
 def _check_heavy_data(path: Path) -> None:
@@ -52,7 +54,7 @@ def _check_heavy_data(path: Path) -> None:
         text = path.read_bytes()
     except OSError:
         return  # the reader says what is wrong
-    for name in dict.fromkeys(_HDF.findall(text)):
+    for name in dict.fromkeys(n.strip() for n in _HDF.findall(text)):
         h5_path = path.parent / name.decode(errors="replace")
         if not h5_path.is_file():
             raise FileNotFoundError(f"{h5_path}: no such file (the heavy data of "
