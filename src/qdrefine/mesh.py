@@ -79,8 +79,20 @@ def _origins(rows: ArrayLike | None, triangles: NDArray, n_points: int
     return a
 
 
-def counter_clockwise_history(points: NDArray[np.float64], rows: NDArray[np.int64] | None,
-                              name: str, flip: bool = False) -> NDArray[np.int64] | None:
+def history_rows(points: NDArray[np.float64], triangles: NDArray,
+                 transitions: ArrayLike | None, origins: ArrayLike | None, flip: bool = False
+                 ) -> tuple[NDArray[np.int64] | None, NDArray[np.int64] | None]:
+    """``transitions`` and ``origins`` checked (:func:`_transitions`, :func:`_origins`) and
+    counter-clockwise (:func:`_counter_clockwise`; ``flip``: clockwise rows of a mirrored
+    file flipped, else refused)."""
+    n = points.shape[0]
+    return (_counter_clockwise(points, _transitions(transitions, triangles, n), "transitions",
+                               flip),
+            _counter_clockwise(points, _origins(origins, triangles, n), "origins", flip))
+
+
+def _counter_clockwise(points: NDArray[np.float64], rows: NDArray[np.int64] | None,
+                       name: str, flip: bool = False) -> NDArray[np.int64] | None:
     """History rows ``(M, 3)`` (``transitions`` or ``origins``; ``-1`` rows skipped) checked
     counter-clockwise by the exact predicate: clockwise ones flipped where ``flip`` (a
     mirrored file, whose triangles are flipped too), else a ``ValueError`` naming the first
@@ -184,9 +196,8 @@ class Mesh:
         fields["point_data"] = _data(self.point_data, n, "point_data", "points")
         fields["cell_data"] = _data(self.cell_data, m, "cell_data", "triangles")
         fields["physical_names"] = _names(self.physical_names)
-        for name, check in (("transitions", _transitions), ("origins", _origins)):
-            rows = check(getattr(self, name), fields["triangles"], n)
-            fields[name] = counter_clockwise_history(fields["points"], rows, name)
+        fields["transitions"], fields["origins"] = history_rows(
+            fields["points"], fields["triangles"], self.transitions, self.origins)
         for name, value in fields.items():
             object.__setattr__(self, name, _readonly(value))
 

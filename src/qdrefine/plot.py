@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from . import quality
 from .mesh import Mesh
+from .report import physical_name, tag_label
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -79,8 +80,6 @@ def _choice(value: str, choices: Sequence[str], name: str) -> str:
 
 def _named(m: Mesh, dim: int, tag: int) -> str:
     """The tag as reports show it: ``"2"``, or ``"2 (hole)"`` where the mesh names it."""
-    from .report import physical_name, tag_label
-
     return tag_label(tag, physical_name(m, dim, tag))
 
 

@@ -19,6 +19,7 @@ import sys
 
 from ..interrupts import TERMINATED, sigterm_as_interrupt
 from ..jit import compiled_before
+from . import _common
 
 __all__ = ["main", "COMMANDS"]
 
@@ -45,7 +46,8 @@ def _parser() -> argparse.ArgumentParser:
         cmd = sub.add_parser(name, help=module.HELP, description=module.HELP)
         module.add_args(cmd)
         cmd.set_defaults(handler=module.run,
-                         compiled=getattr(module, "compiled", lambda args: ("kernels",)))
+                         compiled=getattr(module, "compiled",
+                                          lambda args: _common.KERNELS))
     return parser
 
 

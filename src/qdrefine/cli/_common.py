@@ -11,9 +11,18 @@ import sys
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..io import FORMATS, GMSH_VERSIONS, atomic_path, write
+from ..schemes import get_scheme
+
+if TYPE_CHECKING:
+    from ..adaptive import HistoryMismatch
+
+#: The kernels a first run compiles (:func:`qdrefine.jit.compiled_before`): every command's,
+#: and local refinement's own (about a minute more), named by one module of each.
+KERNELS = ("kernels",)
+LOCAL_KERNELS = ("kernels", "adaptive.longest_edge")
 
 #: Extension of a chunked Zarr mesh store (:mod:`qdrefine.store`).
 STORE = ".zarr"
@@ -98,7 +107,7 @@ def check_format_version(path: str, version: str | None) -> None:
         raise ValueError(f"{path}: --format-version applies to Gmsh .msh output only")
 
 
-def history_mismatch(path: str, scheme: str, exc: Any) -> ValueError:
+def history_mismatch(path: str, scheme: str, exc: HistoryMismatch) -> ValueError:
     """One line for a file whose refinement history does not fit ``scheme``
     (:class:`qdrefine.adaptive.HistoryMismatch` ``exc``), in the command line's terms."""
     return ValueError(f"{path}: its refinement history (cell data qdrefine:transitions) does "
@@ -113,8 +122,6 @@ def counted(n: int, noun: str) -> str:
 
 def scheme_name(text: str) -> str:
     """argparse type: a scheme's name (any case), as :func:`qdrefine.get_scheme` spells it."""
-    from ..schemes import get_scheme
-
     try:
         return get_scheme(text).name
     except ValueError as exc:

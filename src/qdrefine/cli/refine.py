@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
 def compiled(args: argparse.Namespace) -> tuple[str, ...]:
     """The modules whose kernels these options compile on a first run (local refinement
     has its own, about a minute more)."""
-    return ("kernels", "adaptive.longest_edge") if marks.given(args) else ("kernels",)
+    return _common.LOCAL_KERNELS if marks.given(args) else _common.KERNELS
 
 
 def _check_options(args: argparse.Namespace) -> int:

@@ -55,7 +55,7 @@ import numpy as np
 
 from ..check import MIN_ANGLE, Checked, find
 from ..memory import check_needed, reading_needed_for_bytes
-from ..mesh import Mesh, _data, _names, _origins, _transitions, counter_clockwise_history
+from ..mesh import Mesh, _data, _names, history_rows
 from . import gmsh, obj, triangle, vtu, xdmf
 from ._core import WRITE_ERRNOS, RawMesh, atomic_path, atomic_paths, cannot_write, permission_bits
 from .meshio_formats import read_with_meshio, write_with_meshio
@@ -187,11 +187,8 @@ def mesh_of(raw: RawMesh) -> Mesh:
         cell_data = _data(raw.cell_data, m, "cell_data", "triangles")
         names = _names(raw.physical_names)
         # a mirrored file: its history rows are flipped as its triangles are
-        transitions = counter_clockwise_history(
-            found.points, _transitions(raw.transitions, found.triangles, n), "transitions",
-            flip=True)
-        origins = counter_clockwise_history(
-            found.points, _origins(raw.origins, found.triangles, n), "origins", flip=True)
+        transitions, origins = history_rows(found.points, found.triangles, raw.transitions,
+                                            raw.origins, flip=True)
     except ValueError as exc:
         raise ValueError(f"{raw.path}: {exc}") from None
     return Mesh._trusted(found.points, found.triangles, found.cell_tags, found.edges,
