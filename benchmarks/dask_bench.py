@@ -51,11 +51,12 @@ from qdrefine.distributed import local_client, refine_store
 from qdrefine.kernels import number_edges
 
 
-def jittered_grid(n_triangles: float, seed: int = 0) -> Mesh:
-    """About ``n_triangles`` of :func:`qdrefine.examples.jittered_square`, vertices shuffled
-    (triangles in grid order)."""
+def jittered_grid(n_triangles: float, seed: int = 0, shuffle: str = "points") -> Mesh:
+    """About ``n_triangles`` of :func:`qdrefine.examples.jittered_square`; ``shuffle``:
+    ``"points"`` shuffles the vertex numbering (triangles in grid order), ``"none"`` keeps
+    the grid's numbering (spatially local)."""
     n = max(1, int(round(np.sqrt(n_triangles / 2))))
-    return examples.jittered_square(n, seed, shuffle="points")
+    return examples.jittered_square(n, seed, shuffle=shuffle)
 
 
 def expected_counts(mesh: Mesh, scheme: str, levels: int) -> tuple[int, int]:
@@ -254,13 +255,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--dir", type=Path, default=Path("dask-bench"))
     parser.add_argument("--keep", action="store_true", help="keep the refined stores")
     parser.add_argument("--json", type=Path)
+    parser.add_argument("--order", choices=("shuffled", "grid"), default="shuffled",
+                        help="vertex numbering of the input: shuffled (default) or the grid's "
+                             "own, spatially local one")
     parser.add_argument("--baseline", action="store_true",
                         help="also time the in-memory store-to-store refinement and compare")
     args = parser.parse_args(argv)
     args.baseline_target = None
     args.dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    mesh = jittered_grid(args.triangles)
+    mesh = jittered_grid(args.triangles, shuffle="points" if args.order == "shuffled" else "none")
     source = store.create(args.dir / "input.zarr", mesh, chunk_size=args.chunk).path
     print(f"input: {mesh} in chunks of {args.chunk} ({time.perf_counter() - t0:.1f} s)")
     report = {
@@ -270,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
                     "memory_bytes": _total_memory(), "load_average_start": os.getloadavg()},
         "versions": _versions(),
         "code": {"qdrefine": str(Path(qdrefine.__file__).parent), "git_head": _git_head()},
-        "input": {"triangles": mesh.n_triangles, "points": mesh.n_points,
+        "input": {"triangles": mesh.n_triangles, "points": mesh.n_points, "order": args.order,
                   "tagged_edges": len(mesh.edges), "chunk": args.chunk},
         "scheme": args.scheme, "levels": args.levels, "runs": [],
     }
