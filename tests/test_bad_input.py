@@ -779,3 +779,40 @@ def test_check_warns_about_what_refine_would_refuse(tmp_path, run):
     assert thin and thin[0]["where"]["triangle"] == 1 and thin[0]["where"]["vertices"] == [1, 2, 3]
     refined = run("refine", path, tmp_path / "out.msh")
     assert refined.returncode == 1 and "triangle 1 (1, 2, 3) is too thin" in refined.stderr
+
+
+def _interrupt_while_importing(command: list[str]) -> subprocess.CompletedProcess:
+    """Run ``command`` (Python with ``-X importtime``) and send it Ctrl-C (SIGINT) as soon
+    as numba has been imported, that is, while ``import qdrefine`` is still loading its
+    compiled modules (a few hundred milliseconds more)."""
+    import signal
+
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines = []
+    for line in proc.stderr:
+        lines.append(line)
+        if line.split("|")[-1].strip() == "numba":
+            proc.send_signal(signal.SIGINT)
+            break
+    else:
+        raise AssertionError("numba's import was not seen: " + "".join(lines)[-2000:])
+    out, err = proc.communicate(timeout=120)
+    return subprocess.CompletedProcess(command, proc.returncode, out, "".join(lines) + err)
+
+
+def test_ctrl_c_while_the_command_loads_is_one_line(tmp_path):
+    """Ctrl-C in the second a command spends importing numba and the kernels: exit 130 and
+    ``qdrefine: interrupted``, no traceback (the import is not yet inside ``main``'s
+    handler); a program that imports the library still gets its ``KeyboardInterrupt``."""
+    path = tmp_path / "m.msh"
+    qdrefine.write(path, examples.square(2))
+    result = _interrupt_while_importing(
+        [sys.executable, "-X", "importtime", "-m", "qdrefine", "info", str(path)])
+    assert result.returncode == 130, result.stderr[-2000:]
+    assert "Traceback" not in result.stderr
+    messages = [line for line in result.stderr.splitlines() if not line.startswith("import time:")]
+    assert messages == ["qdrefine: interrupted"], messages
+    library = _interrupt_while_importing(
+        [sys.executable, "-X", "importtime", "-c", "import qdrefine; print('loaded')"])
+    assert "loaded" not in library.stdout
+    assert "KeyboardInterrupt" in library.stderr

@@ -4,14 +4,35 @@ The 7T-QD (Seven Triangle Quasi-Delaunay) partition, with 7T-LE, 7T-D and the cl
 four-triangle schemes for comparison. See :func:`refine` and :func:`partition`.
 """
 
-from . import jit  # noqa: F401, I001  (first: where numba caches the kernels)
-from . import marking  # noqa: I001
-from .adaptive import coarsen, refine_cycles
-from .io import read, write
-from .mesh import Mesh
-from .partition import partition, partition_many
-from .refine import refine, refine_with_parents
-from .schemes import SCHEMES, get_scheme, scheme_names
+import os as _os
+import sys as _sys
+
+
+def _loading_for_the_command_line() -> bool:
+    """Whether this import is the start of a ``qdrefine`` command (the console script or
+    ``python -m qdrefine``), not of a program that uses the library."""
+    script = _os.path.splitext(_os.path.basename(_sys.argv[0] if _sys.argv else ""))[0]
+    orig = list(getattr(_sys, "orig_argv", []))
+    return script in ("qdrefine", "qdrefine-script") or any(
+        a == "-m" and b == "qdrefine" for a, b in zip(orig, orig[1:], strict=False))
+
+
+try:
+    from . import jit  # noqa: F401, I001  (first: where numba caches the kernels)
+    from . import marking  # noqa: I001
+    from .adaptive import coarsen, refine_cycles
+    from .io import read, write
+    from .mesh import Mesh
+    from .partition import partition, partition_many
+    from .refine import refine, refine_with_parents
+    from .schemes import SCHEMES, get_scheme, scheme_names
+except KeyboardInterrupt:
+    # Ctrl-C in the second or so a command spends loading numba: one line, like the
+    # commands' own (qdrefine.cli.main), instead of the import's traceback
+    if not _loading_for_the_command_line():
+        raise
+    print("qdrefine: interrupted", file=_sys.stderr)
+    raise SystemExit(130) from None
 
 __all__ = [
     "Mesh",
