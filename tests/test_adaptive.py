@@ -11,6 +11,7 @@ from meshes import jittered_grid
 from oracle import exact, orient
 from qdrefine import (
     Mesh,
+    coarsen,
     examples,
     marking,
     partition_many,
@@ -20,6 +21,7 @@ from qdrefine import (
 )
 from qdrefine.adaptive import (
     Families,
+    HistoryMismatch,
     canonical_edges,
     canonical_labels,
     closure,
@@ -936,3 +938,41 @@ def test_origins_naming_a_removed_centroid_are_refused():
         refine(anew, "7t-qd", marked=green[::5])
     again = refine(fine, "7t-qd", marked=green[::5])  # the history as refinement left it
     assert again.origins.min() >= 0
+
+
+@pytest.mark.parametrize("scheme", ["7t-qd", "4t-le"])
+def test_a_family_missing_a_member_is_refused(scheme):
+    """A submesh cut out of a refined mesh, one transition child left out with its history
+    kept: the family no longer covers its parent, and refining or coarsening it would put
+    the removed triangle back (the area grew from 2.9965 to 3.0 before this was checked).
+    The message names a remaining member, by its row in the mesh as given, shuffled too."""
+    mesh = examples.gmsh_mesh("l_shape")
+    fine = refine(mesh, scheme, marked=marking.mark_point(mesh, (0, 0), 0.3))
+    green = np.flatnonzero(fine.transitions[:, 0] >= 0)
+    for gone in green[[0, len(green) // 2, -1]]:
+        keep = np.flatnonzero(np.arange(fine.n_triangles) != gone)
+        order = keep[np.random.default_rng(int(gone)).permutation(keep.size)]
+        sub = Mesh(fine.points, fine.triangles[order], fine.cell_tags[order],
+                   transitions=fine.transitions[order], origins=fine.origins[order])
+        for call in (lambda s=sub: refine(s, scheme, marked=[0]),
+                     lambda s=sub: coarsen(s, np.ones(s.n_triangles, dtype=bool), scheme)):
+            with pytest.raises(HistoryMismatch, match="does not cover") as info:
+                call()
+            named = info.value.triangle
+            assert (sub.transitions[named] == fine.transitions[gone]).all()
+            assert f"triangle {named} " in str(info.value)
+    # the whole family removed is a valid history (its parent's region is a hole now)
+    family = np.flatnonzero((fine.transitions == fine.transitions[green[0]]).all(axis=1))
+    keep = np.setdiff1d(np.arange(fine.n_triangles), family)
+    sub = Mesh(fine.points, fine.triangles[keep], fine.cell_tags[keep],
+               transitions=fine.transitions[keep], origins=fine.origins[keep])
+    assert conformity(refine(sub, scheme, marked=[0])).ok
+
+
+def test_the_history_names_are_reserved_for_cell_data():
+    """A cell field named like the history's file fields would be overwritten by it in
+    every file written: refused when the mesh is made."""
+    mesh = examples.square(2)
+    for name in ("qdrefine:transitions", "qdrefine:origins"):
+        with pytest.raises(ValueError, match=rf"cell_data\['{name}'\]: this name is reserved"):
+            mesh.replace(cell_data={name: np.zeros((mesh.n_triangles, 3), np.int64)})

@@ -28,14 +28,24 @@ def _frozen_map(data: Mapping[str, NDArray] | None) -> Mapping[str, NDArray]:
     return MappingProxyType({str(k): _readonly(np.asarray(v)) for k, v in (data or {}).items()})
 
 
-def _data(data: Mapping[str, ArrayLike] | None, size: int, what: str, rows: str
-          ) -> Mapping[str, NDArray]:
-    """Copies of the arrays of ``data``, each with ``size`` rows, in a read-only mapping."""
+#: The cell-data names under which files hold :attr:`Mesh.transitions` and
+#: :attr:`Mesh.origins` (``qdrefine.io``): reserved, a mesh's own cell data cannot use them.
+HISTORY_CELL_DATA = ("qdrefine:transitions", "qdrefine:origins")
+
+
+def _data(data: Mapping[str, ArrayLike] | None, size: int, what: str, rows: str,
+          reserved: tuple[str, ...] = ()) -> Mapping[str, NDArray]:
+    """Copies of the arrays of ``data``, each with ``size`` rows, in a read-only mapping;
+    the names ``reserved`` are refused."""
     out = {}
     for key, value in (data or {}).items():
         a = np.array(value)
         if not isinstance(key, str):
             raise ValueError(f"{what}: keys must be strings, got {key!r}")
+        if key in reserved:
+            raise ValueError(f"{what}[{key!r}]: this name is reserved for the refinement "
+                             f"history, which files store under it (pass it as "
+                             f"{key.split(':')[1]}=..., or rename the field)")
         if a.ndim == 0 or a.shape[0] != size:
             raise ValueError(f"{what}[{key!r}] must have one row per {rows[:-1]} "
                              f"({size} {rows}), got shape {a.shape}")
@@ -194,7 +204,8 @@ class Mesh:
         object.__setattr__(self, "_buckets", buckets)
         n, m = fields["points"].shape[0], fields["triangles"].shape[0]
         fields["point_data"] = _data(self.point_data, n, "point_data", "points")
-        fields["cell_data"] = _data(self.cell_data, m, "cell_data", "triangles")
+        fields["cell_data"] = _data(self.cell_data, m, "cell_data", "triangles",
+                                    HISTORY_CELL_DATA)
         fields["physical_names"] = _names(self.physical_names)
         fields["transitions"], fields["origins"] = history_rows(
             fields["points"], fields["triangles"], self.transitions, self.origins)

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from ..mesh import Mesh
 from .edgekeys import oriented
-from .families import Families
+from .families import Families, family_spans
 from .labels import canonical_labels
 from .patterns import canonical_corners, pattern_stencil, stencil_coordinates
 from .working import with_edge_points
@@ -25,12 +25,15 @@ from .working import with_edge_points
 class HistoryMismatch(ValueError):
     """A mesh's refinement history (:attr:`~qdrefine.Mesh.transitions`) does not fit its
     points for the scheme at hand: made by a scheme with other points, or changed since.
-    ``detail`` says where."""
+    ``detail`` says what and where; ``triangle``, where given, is the row of the mesh
+    it names, put in place of ``{triangle}`` in ``template``."""
 
-    def __init__(self, detail: str) -> None:
-        self.detail = detail
-        super().__init__(f"transitions: {detail} (refine and coarsen with the scheme the "
-                         "mesh was refined with, or drop the history: "
+    def __init__(self, template: str, triangle: int | None = None) -> None:
+        self.template = template
+        self.triangle = triangle
+        self.detail = template if triangle is None else template.format(triangle=triangle)
+        super().__init__(f"transitions: {self.detail} (refine and coarsen with the scheme "
+                         "the mesh was refined with, or drop the history: "
                          "mesh.replace(transitions=None))")
 
 
@@ -80,7 +83,13 @@ def families_of(mesh: Mesh, k: int) -> tuple[Mesh, Families, NDArray[np.int64] |
     member = np.full(m, -1, dtype=np.int64)
     member[green] = rank[family]
     parent_rows = parent_rows[np.argsort(first)]
-    stencil = _stencils(mesh, parent_rows, member, k)
+    try:
+        stencil = _stencils(mesh, parent_rows, member, k)
+        _check_tiling(mesh.triangles, member, stencil, k)
+    except HistoryMismatch as exc:
+        if order is None or exc.triangle is None:
+            raise
+        raise HistoryMismatch(exc.template, int(order[exc.triangle])) from None
     return mesh, Families(member, parent_rows, stencil), order
 
 
@@ -202,15 +211,78 @@ def _stencils(mesh: Mesh, parent_rows: NDArray[np.int64], member: NDArray[np.int
     found = hit.any(axis=1)
     if not found.all():
         bad = int(np.flatnonzero(member == fam[~found][0])[0])
-        raise HistoryMismatch(f"triangle {bad} is marked as a transition child, but point "
-                              f"{int(vert[~found][0])} is not a point the refinement makes "
-                              "on its parent")
+        raise HistoryMismatch(f"triangle {{triangle}} is marked as a transition child, but "
+                              f"point {int(vert[~found][0])} is not a point the refinement "
+                              "makes on its parent", bad)
     stencil[fam, 3 + np.argmax(hit, axis=1)] = vert
     edge_pts = stencil[:, 3: 3 + 3 * k].reshape(f, 3, k)
     if ((edge_pts >= 0).any(axis=2) != (edge_pts >= 0).all(axis=2)).any():
         bad = int(np.flatnonzero(((edge_pts >= 0).any(axis=2)
                                   != (edge_pts >= 0).all(axis=2)).any(axis=1))[0])
-        raise HistoryMismatch(f"the family of triangle "
-                              f"{int(np.flatnonzero(member == bad)[0])} has an edge with only "
-                              "some of its points")
+        raise HistoryMismatch("the family of triangle {triangle} has an edge with only some "
+                              "of its points", int(np.flatnonzero(member == bad)[0]))
     return stencil
+
+
+def _check_tiling(triangles: NDArray[np.integer], member: NDArray[np.int64],
+                  stencil: NDArray[np.int64], k: int) -> None:
+    """Raise :class:`HistoryMismatch` unless the members of each family cover its parent:
+    the edges that only one member of a family has must be exactly the parent's boundary,
+    cut at the points of its split edges (``stencil (F, S)``). The mesh has no overlaps,
+    so members whose free edges run along the parent's boundary fill it; a member removed
+    (a submesh cut out of a refined mesh) leaves free edges inside it."""
+    first, _, count = family_spans(member, stencil.shape[0])
+    bad = _uncovered(triangles, first, count, stencil, k)
+    if bad >= 0:
+        raise HistoryMismatch("the family of triangle {triangle} does not cover the triangle "
+                              "it replaced (a member was removed or added since the "
+                              "refinement)", int(first[bad]))
+
+
+@njit(cache=True)
+def _uncovered(triangles, first, count, stencil, k):
+    """The first family (members ``first[f] ..``, ``count[f]`` of them, consecutive) whose
+    members' free edges are not its parent's boundary segments, or -1."""
+    most = 3 * max(1, count.max()) if count.size else 3
+    lo = np.empty(most, dtype=np.int64)
+    hi = np.empty(most, dtype=np.int64)
+    chain = np.empty(k + 2, dtype=np.int64)
+    for f in range(first.shape[0]):
+        n = 3 * count[f]
+        for i in range(count[f]):
+            for j in range(3):
+                a = np.int64(triangles[first[f] + i, j])
+                b = np.int64(triangles[first[f] + i, (j + 1) % 3])
+                lo[3 * i + j] = min(a, b)
+                hi[3 * i + j] = max(a, b)
+        free = 0  # edges of one member only
+        for i in range(n):
+            shared = False
+            for j in range(n):
+                if j != i and lo[j] == lo[i] and hi[j] == hi[i]:
+                    shared = True
+                    break
+            if not shared:
+                free += 1
+        segments = 0
+        for e in range(3):
+            chain[0] = stencil[f, e]
+            m = 1
+            if stencil[f, 3 + k * e] >= 0:
+                for i in range(k):
+                    chain[m] = stencil[f, 3 + k * e + i]
+                    m += 1
+            chain[m] = stencil[f, (e + 1) % 3]
+            m += 1
+            for s in range(m - 1):
+                a, b = min(chain[s], chain[s + 1]), max(chain[s], chain[s + 1])
+                uses = 0
+                for i in range(n):
+                    if lo[i] == a and hi[i] == b:
+                        uses += 1
+                if uses != 1:
+                    return f
+                segments += 1
+        if free != segments:
+            return f
+    return -1

@@ -15,13 +15,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..check import Problem
+from ..mesh import HISTORY_CELL_DATA
 
 PathLike = str | os.PathLike
 
-#: The cell-data name under which :attr:`qdrefine.Mesh.transitions` is stored in files.
-TRANSITIONS = "qdrefine:transitions"
-#: The cell-data name under which :attr:`qdrefine.Mesh.origins` is stored in files.
-ORIGINS = "qdrefine:origins"
+#: The cell-data names under which :attr:`qdrefine.Mesh.transitions` and
+#: :attr:`qdrefine.Mesh.origins` are stored in files (reserved: ``Mesh`` refuses them as
+#: cell data of its own).
+TRANSITIONS, ORIGINS = HISTORY_CELL_DATA
 
 
 @dataclass
