@@ -501,7 +501,7 @@ def test_validation_memory_is_checked(monkeypatch):
     assert Mesh(p, t).n_triangles == len(t)
 # files that would hang a reader, or outputs that would lose data ---------------------------
 
-@pytest.mark.parametrize("ext", [".msh", ".vtu", ".vtk", ".node"])
+@pytest.mark.parametrize("ext", [".msh", ".vtu", ".vtk", ".node", ".xdmf"])
 def test_fifo_is_refused_not_waited_on(tmp_path, ext):
     """A FIFO (or device) named as input: one line, at once, instead of waiting for a writer."""
     path = tmp_path / f"pipe{ext}"
@@ -816,3 +816,78 @@ def test_ctrl_c_while_the_command_loads_is_one_line(tmp_path):
         [sys.executable, "-X", "importtime", "-c", "import qdrefine; print('loaded')"])
     assert "loaded" not in library.stdout
     assert "KeyboardInterrupt" in library.stderr
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_a_huge_tag_count_in_a_data_section_is_an_error_not_a_hang(tmp_path, binary):
+    """``$NodeData`` announcing 10**13 real tags: the reader read empty lines past the end
+    of the file 10**13 times (review); now one line at once."""
+    mesh = examples.square(2).replace(point_data={"h": np.arange(9.0)})
+    path = tmp_path / "d.msh"
+    qdrefine.write(path, mesh, binary=binary)
+    data = path.read_bytes()
+    at = data.index(b"$NodeData\n") + len(b"$NodeData\n")
+    path.write_bytes(data[:at] + b"1" * 14 + data[data.index(b"\n", at):])
+    with pytest.raises(ValueError, match=r"d\.msh: not a readable Gmsh MSH file \(.*\$NodeData: "
+                                         r"the section ends inside its 1{14} tags"):
+        qdrefine.read(path)
+
+
+def test_xdmf_and_xmf_of_one_name_are_one_output(tmp_path, monkeypatch, capsys):
+    """``m.xdmf`` and ``m.xmf`` share ``m.h5``: refining one into the other would replace the
+    input's heavy data (review); refused like any output that overwrites its input."""
+    from qdrefine.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    qdrefine.write("m.xdmf", examples.square(2))
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert main(["refine", "m.xdmf", "m.xmf"]) == 1
+    assert capsys.readouterr().err == (
+        "qdrefine: error: m.xmf: the output would overwrite the input (m.xdmf and m.xmf share "
+        "the heavy-data file m.h5); choose another name\n")
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_what_msh_and_xdmf_files_cannot_hold_is_refused(tmp_path):
+    """Tags beyond 32 bits (binary MSH 2.2 wrapped them to other tags, text MSH wrote files
+    it could not read), a physical name with a line break in MSH, a control character in
+    XDMF's XML: refused before anything is written (review)."""
+    square = examples.square(2)
+    big = square.replace(cell_tags=np.full(square.n_triangles, 2**31))
+    for kwargs in ({}, {"binary": True}, {"format_version": "2.2"},
+                   {"format_version": "2.2", "binary": True}):
+        with pytest.raises(ValueError, match=r"t\.msh: cell tag 2147483648 does not fit the "
+                                             "32-bit tags of Gmsh files"):
+            qdrefine.write(tmp_path / "t.msh", big, **kwargs)
+    assert qdrefine.read(_written(tmp_path / "t.vtu", big)).cell_tags.max() == 2**31
+    named = square.replace(cell_tags=np.ones(square.n_triangles, np.int64),
+                           physical_names={(2, 1): "two\nlines"})
+    with pytest.raises(ValueError, match=r"contains a line break, which MSH files cannot"):
+        qdrefine.write(tmp_path / "n.msh", named)
+    assert qdrefine.read(_written(tmp_path / "n.vtu", named)).physical_names[(2, 1)] == \
+        "two\nlines"
+    for mesh in (named.replace(physical_names={(2, 1): "a\x01b"}),
+                 square.replace(point_data={"a\x1fb": np.zeros(9)})):
+        with pytest.raises(ValueError, match="contains a control character, which XML files"):
+            qdrefine.write(tmp_path / "c.xdmf", mesh)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["n.vtu", "t.vtu"]
+
+
+def _written(path, mesh):
+    qdrefine.write(path, mesh)
+    return path
+
+
+def test_half_floats_and_text_vtu(tmp_path):
+    """float16 data: VTU and VTK have no 16-bit floats; they are written as float32 (every
+    value exact; VTU reads back float16) instead of failing with a KeyError (review). Text
+    VTU is refused, as documented (meshio's would round the points and drop the names)."""
+    square = examples.square(2)
+    mesh = square.replace(point_data={"h": (np.arange(9) / 7).astype(np.float16)})
+    back = qdrefine.read(_written(tmp_path / "h.vtu", mesh))
+    assert back.point_data["h"].dtype == np.float16
+    assert np.array_equal(back.point_data["h"], mesh.point_data["h"])
+    vtk = qdrefine.read(_written(tmp_path / "h.vtk", mesh)).point_data["h"]
+    assert np.array_equal(vtk, mesh.point_data["h"].astype(np.float32))
+    with pytest.raises(ValueError, match=r"t\.vtu: VTU files are written with binary data only"):
+        qdrefine.write(tmp_path / "t.vtu", square, binary=False)

@@ -171,12 +171,16 @@ def session() -> Iterator[None]:
         yield
 
 
-def _key(path: Path) -> Path:
-    """The file identity of ``path`` (Triangle files: their common base name)."""
+def _files(path: Path) -> set[Path]:
+    """The files that the mesh file ``path`` is made of, as identities: Triangle files by
+    their common base name, an XDMF file with its HDF5 file (``name.h5``, shared by
+    ``name.xdmf`` and ``name.xmf``)."""
     p = path.resolve()
     if p.suffix.lower() in (".node", ".ele", ".poly"):
-        return p.with_suffix(".triangle")
-    return p
+        return {p.with_suffix(".triangle")}
+    if p.suffix.lower() in (".xdmf", ".xmf"):
+        return {p, p.with_suffix(".h5")}
+    return {p}
 
 
 def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
@@ -206,9 +210,13 @@ def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{out}: directory {out.parent} does not exist")
     for i in inputs:
-        if _key(Path(i)) == _key(out):
-            raise ValueError(f"{out}: the output would overwrite the input; choose another "
-                             "name")
+        shared = _files(Path(i)) & _files(out)
+        if shared:
+            h5 = [p for p in shared if p.suffix == ".h5"]
+            also = "" if out.resolve() in shared or not h5 else \
+                f" ({i} and {out} share the heavy-data file {h5[0].name})"
+            raise ValueError(f"{out}: the output would overwrite the input{also}; choose "
+                             "another name")
     return out
 
 

@@ -251,6 +251,9 @@ def raw_from_meshio(m, path: Path) -> RawMesh:
 
 
 def _plain(value) -> NDArray:
-    """Data as meshio's writers take it: booleans as ``uint8``."""
+    """Data as meshio's writers take it: booleans as ``uint8``, 16-bit floats as
+    ``float32`` (which holds each of their values exactly; VTK has no 16-bit floats)."""
     a = np.asarray(value)
-    return a.astype(np.uint8) if a.dtype == bool else a
+    if a.dtype == bool:
+        return a.astype(np.uint8)
+    return a.astype(np.float32) if a.dtype.kind == "f" and a.dtype.itemsize == 2 else a

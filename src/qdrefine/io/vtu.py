@@ -219,13 +219,12 @@ def _block(data: bytes, offset: int, header: np.dtype, compressed: bool) -> byte
 
 def write(path: Path, mesh, *, binary: bool = True, compress: bool = False) -> None:
     """Write ``mesh`` as a VTU file with appended binary data (raw, or zlib with
-    ``compress=True``); ``binary=False`` is refused (text VTU loses nothing but is slow,
-    and meshio writes it)."""
+    ``compress=True``); ``binary=False`` is refused: text VTU (meshio's) would round the
+    points and lose the physical names and some fields."""
     if not binary:
-        from .meshio_formats import write_with_meshio
-
-        write_with_meshio(path, mesh, "vtu", tags=True, data=True, binary=False)
-        return
+        raise ValueError(f"{path}: VTU files are written with binary data only (text VTU "
+                         "would not keep every bit of the points, nor the physical names); "
+                         "leave binary at its default")
     m, n = mesh.n_triangles, mesh.n_points
     k = 0 if mesh.edges is None else len(mesh.edges)
     tris = np.asarray(mesh.triangles)
@@ -262,6 +261,8 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False) -> N
             a = a.astype(np.uint8)
         if a.dtype.kind not in "iuf":
             raise ValueError(f"{path}: data {name!r} of dtype {a.dtype} cannot be written")
+        if a.dtype.kind == "f" and a.dtype.itemsize == 2:
+            a = a.astype(np.float32)  # VTK has no 16-bit floats; float32 holds each exactly
         a = np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<"))
         comps = f' NumberOfComponents="{int(np.prod(a.shape[1:]))}"' if a.ndim > 1 else ""
         body = _encode(a, compress)

@@ -22,7 +22,7 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 
-from ._core import RawMesh, atomic_paths, cannot_write, mesh_data
+from ._core import RawMesh, atomic_paths, cannot_write, check_regular, mesh_data
 
 __all__ = ["read", "write"]
 
@@ -37,6 +37,7 @@ _SET = re.compile(rb"<!-- qdrefine set (\w+) -->")
 def read(path: Path) -> RawMesh:
     from .meshio_formats import read_with_meshio
 
+    check_regular(path)  # a FIFO or device is refused before it is opened
     _check_set(path)
     _check_heavy_data(path)
     return read_with_meshio(path, "xdmf", "XDMF")
@@ -85,6 +86,21 @@ def _check_set(path: Path) -> None:
                          "interrupted or concurrent write; write the mesh again")
 
 
+#: Characters that XML 1.0 cannot hold, not even escaped.
+_NOT_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]")
+
+
+def _check_names(path: Path, mesh) -> None:
+    """Refuse names that the XML file cannot hold (control characters)."""
+    names = [("physical name", name) for name in (mesh.physical_names or {}).values()]
+    names += [("point data name", name) for name in (mesh.point_data or {})]
+    names += [("cell data name", name) for name in (mesh.cell_data or {})]
+    for what, name in names:
+        if _NOT_XML.search(name):
+            raise ValueError(f"{path}: {what} {name!r} contains a control character, which "
+                             "XML files cannot hold")
+
+
 def _write_error(path: Path, exc: BaseException) -> OSError:
     """One line for a failed HDF5 write: the file and the system's reason (HDF5 puts the
     ``errno`` inside a long message)."""
@@ -110,6 +126,7 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # no
     gzip-compressed (with byte shuffle), which ParaView and meshio read as well."""
     import h5py
 
+    _check_names(path, mesh)
     h5_path = path.with_suffix(".h5")
     m, n = mesh.n_triangles, mesh.n_points
     k = 0 if mesh.edges is None else len(mesh.edges)

@@ -502,6 +502,8 @@ def _data_section(kind: str):
                 raise f.error(pos, f"${kind}: expected a number of tags, got {text[:40]!r}")
             values = []
             for _ in range(int(text)):
+                if pos >= len(f.data) or f.data.startswith(b"$End", pos):
+                    raise f.error(start, f"${kind}: the section ends inside its {text} tags")
                 value, pos = f.line(pos)
                 values.append(value)
             header.append(values)

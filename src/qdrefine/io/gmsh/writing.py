@@ -136,6 +136,7 @@ def tag_groups(tags: NDArray[np.integer]) -> tuple[NDArray[np.int64], NDArray[np
 def write(path: Path, mesh, *, binary: bool = False, version: str = "4.1") -> None:
     """Write ``mesh`` as Gmsh MSH ``version`` (``"4.1"`` or ``"2.2"``), text or binary."""
     _check_version(path, version)
+    _check_tags_and_names(path, mesh)
     point_data, cell_data = mesh_data(mesh)
     sections = _data_sections(path, mesh, point_data, cell_data, binary)
     _write(path, _InMemory.of_mesh(mesh), binary, version, mesh.physical_names, sections)
@@ -148,6 +149,26 @@ def write_chunks(path: Path, source: Chunks, *, binary: bool = False,
     chunk at a time."""
     _check_version(path, version)
     _write(path, source, binary, version, {}, [])
+
+
+#: The largest tag an MSH file holds (Gmsh's tags are C ``int``; binary files write int32).
+LARGEST_TAG = 2**31 - 1
+
+
+def _check_tags_and_names(path: Path, mesh) -> None:
+    """Refuse what an MSH file cannot hold: tags beyond 32-bit integers (binary 2.2 files
+    would wrap them, text files would not read back), physical names with a line break
+    (``$PhysicalNames`` is one name per line)."""
+    for what, tags in (("cell tag", mesh.cell_tags), ("edge tag", mesh.edge_tags)):
+        if tags is not None and len(tags):
+            far = int(tags[np.argmax(np.abs(np.asarray(tags, dtype=np.int64)))])
+            if abs(far) > LARGEST_TAG:
+                raise ValueError(f"{path}: {what} {far} does not fit the 32-bit tags of Gmsh "
+                                 f"files (at most {LARGEST_TAG} in absolute value)")
+    for (dim, tag), name in (mesh.physical_names or {}).items():
+        if "\n" in name or "\r" in name:
+            raise ValueError(f"{path}: physical name {name!r} ({dim}, {tag}) contains a line "
+                             "break, which MSH files cannot hold")
 
 
 def _check_version(path: Path, version: str) -> None:
