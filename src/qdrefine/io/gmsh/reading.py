@@ -434,18 +434,29 @@ def _elements22(f: _File, c: _Content, start: int) -> int:
     total = int(text)
     if f.binary:
         done = 0
+        look = 16  # blocks examined at once for a run of equal headers (doubled while found)
         while done < total:
-            h, pos = f.take(pos, np.int32, 3, "$Elements")
+            h, _ = f.take(pos, np.int32, 3, "$Elements")
             typ, n, ntags = (int(x) for x in h)
-            kind = _kind(f, typ, pos - 12)
+            kind = _kind(f, typ, pos)
             npe = ELEMENTS[kind][1]
             if n <= 0 or ntags < 0 or done + n > total:
-                raise f.error(pos - 12, f"bad element block header ({typ}, {n}, {ntags})")
-            v, pos = f.take(pos, np.int32, n * (1 + ntags + npe), "$Elements")
-            v = v.reshape(n, 1 + ntags + npe).astype(np.int64)
-            phys = v[:, 1] if ntags else np.zeros(n, np.int64)
+                raise f.error(pos, f"bad element block header ({typ}, {n}, {ntags})")
+            # Gmsh writes one block per element: take the run of blocks with this header
+            width = 3 + n * (1 + ntags + npe)  # int32 per block, header included
+            fit = min(look, (total - done) // n, (len(f.data) - pos) // (4 * width))
+            if fit == 0:  # the file ends inside this block
+                f.take(pos + 12, np.int32, n * (1 + ntags + npe), "$Elements")
+            recs = np.frombuffer(f.data, np.int32, count=fit * width, offset=pos)
+            recs = recs.reshape(fit, width)
+            same = (recs[:, :3] == h).all(axis=1)
+            run = fit if same.all() else int(np.argmin(same))
+            look = 2 * look if run == fit else 16
+            v = recs[:run, 3:].reshape(run * n, 1 + ntags + npe).astype(np.int64)
+            phys = v[:, 1] if ntags else np.zeros(run * n, np.int64)
             c.blocks.append((kind, phys, -1, v[:, 0], v[:, 1 + ntags:]))
-            done += n
+            done += run * n
+            pos += 4 * width * run
         return pos
     end = f.end_of("Elements", pos)
     section = f.data[pos:end]
