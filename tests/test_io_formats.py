@@ -359,3 +359,57 @@ def test_binary_msh22_with_one_block_per_element(tmp_path):
     with pytest.raises(ValueError, match=r"c\.msh: not a readable Gmsh MSH file \(byte \d+: "
                                          r"the file ends inside \$Elements"):
         qdrefine.read(tmp_path / "c.msh")
+
+
+def test_entities_in_several_physical_groups(tmp_path):
+    """A curve in two physical groups ("boundary" and "inlet") and a surface in two
+    ("domain" and "everything"), as Gmsh writes them: MSH 2.2 repeats the elements once per
+    group, MSH 4.1 lists the groups on the entity. Both versions, text and binary, give the
+    same mesh: every tagged line once per group, each triangle once with its first group's
+    tag and a warning for the other (review: 2.2 was refused as 'edge shared by 4
+    triangles', 4.1 dropped the inlet's lines silently)."""
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        r = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
+        gmsh.model.occ.synchronize()
+        curves = [t for _, t in gmsh.model.getEntities(1)]
+        gmsh.model.addPhysicalGroup(2, [r], 1, "domain")
+        gmsh.model.addPhysicalGroup(1, curves, 2, "boundary")
+        gmsh.model.addPhysicalGroup(1, curves[:1], 3, "inlet")
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.3)
+        gmsh.model.mesh.generate(2)
+        plain = {}
+        for version in (2.2, 4.1):
+            gmsh.option.setNumber("Mesh.MshFileVersion", version)
+            gmsh.write(str(tmp_path / f"curve-{version}.msh"))
+        gmsh.model.addPhysicalGroup(2, [r], 5, "everything")
+        for version in (2.2, 4.1):
+            for binary in (0, 1):
+                gmsh.option.setNumber("Mesh.MshFileVersion", version)
+                gmsh.option.setNumber("Mesh.Binary", binary)
+                gmsh.write(str(tmp_path / f"surface-{version}-{binary}.msh"))
+    finally:
+        gmsh.finalize()
+    for version in (2.2, 4.1):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            plain[version] = qdrefine.read(tmp_path / f"curve-{version}.msh")
+    reference = plain[2.2]
+    assert np.bincount(reference.edge_tags).tolist()[2:] == [32, 8]
+    assert set(reference.cell_tags.tolist()) == {1}
+    for path in sorted(tmp_path.glob("*.msh")):
+        if path.name.startswith("surface"):
+            with pytest.warns(UserWarning, match=rf"{path.name}: .*physical .*a triangle "
+                                                 "holds one tag"):
+                mesh = qdrefine.read(path)
+        else:
+            mesh = plain[2.2 if "2.2" in path.name else 4.1]
+        # text files hold 16 digits (not every bit): points to rounding
+        assert np.allclose(mesh.points, reference.points, rtol=0, atol=1e-15), path.name
+        for name in ("triangles", "cell_tags"):
+            assert np.array_equal(getattr(mesh, name), getattr(reference, name)), path.name
+        edges = sorted(zip(map(tuple, np.sort(mesh.edges, axis=1).tolist()),
+                           mesh.edge_tags.tolist(), strict=True))
+        assert edges == sorted(zip(map(tuple, np.sort(reference.edges, axis=1).tolist()),
+                                   reference.edge_tags.tolist(), strict=True)), path.name

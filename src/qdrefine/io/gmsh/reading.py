@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -93,7 +94,10 @@ class _Content:
         self.points: NDArray | None = None
         # (type, physical tag(s), dimension, element tags, nodes) per element block
         self.blocks: list[tuple[int, object, int, NDArray, NDArray]] = []
-        self.entities: dict[tuple[int, int], int] = {}
+        # physical tags of each (dimension, entity); (0,): none
+        self.entities: dict[tuple[int, int], tuple[int, ...]] = {}
+        # MSH 4.1 entities in several physical groups: (dimension, entity, tags, elements)
+        self.several: list[tuple[int, int, tuple[int, ...], NDArray, NDArray]] = []
         self.names: dict[tuple[int, int], str] = {}
         self.node_data: dict[str, tuple[NDArray, NDArray]] = {}
         self.element_data: dict[str, tuple[NDArray, NDArray]] = {}
@@ -206,7 +210,7 @@ def _entities(f: _File, c: _Content, start: int) -> int:
                 _, pos = f.take(pos, np.float64, 3 if dim == 0 else 6, "$Entities")
                 n_phys, pos = f.take(pos, np.uint64, 1, "$Entities")
                 phys, pos = f.take(pos, np.int32, int(n_phys[0]), "$Entities")
-                c.entities[(dim, int(tag[0]))] = int(phys[0]) if len(phys) else 0
+                c.entities[(dim, int(tag[0]))] = tuple(int(p) for p in phys) or (0,)
                 if dim > 0:
                     n_b, pos = f.take(pos, np.uint64, 1, "$Entities")
                     _, pos = f.take(pos, np.int32, int(n_b[0]), "$Entities")
@@ -222,7 +226,7 @@ def _entities(f: _File, c: _Content, start: int) -> int:
                 n_phys = _int(v[i])
                 phys = v[i + 1:i + 1 + n_phys]
                 i += 1 + n_phys
-                c.entities[(dim, tag)] = _int(phys[0]) if n_phys else 0
+                c.entities[(dim, tag)] = tuple(_int(p) for p in phys) or (0,)
                 if dim > 0:
                     i += 1 + int(v[i])
     except (IndexError, ValueError, OverflowError):
@@ -311,7 +315,7 @@ def _elements41_by_lines(f: _File, c: _Content, start: int, end: int) -> bool:
                 np.empty((0, 1 + npe), np.int64)
             if rows.shape != (n, 1 + npe):
                 return False
-            blocks.append((typ, c.entities.get((dim, ent), 0), dim, rows[:, 0], rows[:, 1:]))
+            blocks.append(_block41(c, typ, dim, ent, rows[:, 0], rows[:, 1:]))
             at += 1 + n
         if f.data[line_start[at]:end].strip():
             return False
@@ -394,8 +398,7 @@ def _elements(f: _File, c: _Content, start: int) -> int:
             n, npe = int(count[0]), ELEMENTS[kind][1]
             v, pos = f.take(pos, np.uint64, n * (1 + npe), "$Elements")
             v = v.reshape(n, 1 + npe).view(np.int64)  # tags < 2**63
-            c.blocks.append((kind, c.entities.get((int(b[0]), int(b[1])), 0), int(b[0]),
-                             v[:, 0], v[:, 1:]))
+            c.blocks.append(_block41(c, kind, int(b[0]), int(b[1]), v[:, 0], v[:, 1:]))
         return pos
     end = f.end_of("Elements", start)
     if _elements41_by_lines(f, c, start, end):
@@ -415,10 +418,20 @@ def _elements(f: _File, c: _Content, start: int) -> int:
             raise f.error(end, f"$Elements ends early (a block announces {n} elements)")
         rows = v[i:i + n * (1 + npe)].reshape(n, 1 + npe)
         i += n * (1 + npe)
-        c.blocks.append((kind, c.entities.get((dim, ent), 0), dim, rows[:, 0], rows[:, 1:]))
+        c.blocks.append(_block41(c, kind, dim, ent, rows[:, 0], rows[:, 1:]))
     if i != len(v):
         raise f.error(end, f"$Elements holds {len(v) - i} numbers more than announced")
     return end
+
+
+def _block41(c: _Content, kind: int, dim: int, ent: int, ids: NDArray, nodes: NDArray
+             ) -> tuple[int, int, int, NDArray, NDArray]:
+    """An MSH 4.1 element block with its entity's physical tag; an entity in several
+    physical groups is noted (:func:`_several_groups`) and takes the first."""
+    tags = c.entities.get((dim, ent), (0,))
+    if len(tags) > 1 and len(ids):
+        c.several.append((dim, ent, tags, ids, nodes))
+    return kind, tags[0], dim, ids, nodes
 
 
 def _kind(f: _File, typ: int, pos: int) -> int:
@@ -619,6 +632,10 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
         twice = _first_duplicate(np.concatenate(element_ids).astype(np.int64))
         if twice is not None:
             raise GmshError(f"element tag {twice} is given twice in $Elements")
+    for kind, tag, ids, nodes in _several_groups(f, c):  # lines once per physical group
+        blocks.append((ELEMENTS[kind][0], _rows_of(tags, nodes, contiguous)))
+        block_tags.append(np.full(len(ids), tag, np.int64))
+        element_ids.append(ids)
     # sort each kind by element tag (keeps the order of files written grouped by entity)
     by_kind: dict[str, list[int]] = {}
     for i, (name, _) in enumerate(blocks):
@@ -632,6 +649,8 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
         if len(ids) > 1 and (np.diff(ids) < 0).any():
             order = np.argsort(ids, kind="stable")
             rows, tg, ids = rows[order], tg[order], ids[order]
+        if name == "triangle" and c.version == "2.2":
+            rows, tg, ids = _once_per_triangle(f, rows, tg, ids)
         merged.append((name, rows))
         merged_tags.append(tg)
         if name == "triangle":
@@ -658,6 +677,54 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
             cell_data[name] = _field(c, "cell", name, v, _rows_of(tri_ids, t), len(tri_ids))
     split_data(raw, point_data, cell_data)
     return raw
+
+
+def _groups(c: _Content, dim: int, tags) -> str:
+    return ", ".join(f"{t} ({c.names[(dim, t)]!r})" if (dim, t) in c.names else str(t)
+                     for t in tags)
+
+
+def _several_groups(f: _File, c: _Content):
+    """MSH 4.1 entities in several physical groups: their lines once more per further
+    group, as ``(kind, tag, element tags, nodes)`` (MSH 2.2 files hold such lines once per
+    group already); a warning for surfaces, whose triangles keep the first group's tag."""
+    for dim, ent, tags, ids, nodes in c.several:
+        if dim == 1:
+            for tag in tags[1:]:
+                yield 1, tag, ids, nodes
+        elif dim == 2:
+            warnings.warn(f"{f.path}: surface {ent} is in physical groups "
+                          f"{_groups(c, dim, tags)}; a triangle holds one tag, so its "
+                          f"{len(ids)} elements take {tags[0]}", stacklevel=2)
+
+
+def _once_per_triangle(f: _File, rows: NDArray, tags: NDArray, ids: NDArray
+                       ) -> tuple[NDArray, NDArray, NDArray]:
+    """MSH 2.2: Gmsh writes a triangle once per physical group it is in. A triangle given
+    again with another tag is dropped, with a warning: a triangle holds one tag (the
+    first). A repetition with the same tag is left for the mesh checks to refuse."""
+    if len(tags) < 2 or (tags == tags[0]).all():
+        return rows, tags, ids
+    srt = np.sort(rows, axis=1)
+    order = np.lexsort((srt[:, 2], srt[:, 1], srt[:, 0]))
+    same = (srt[order[1:]] == srt[order[:-1]]).all(axis=1)
+    if not same.any():
+        return rows, tags, ids
+    again = np.zeros(len(rows), dtype=bool)  # a later copy of a triangle (stable sort)
+    again[order[1:][same]] = True
+    first = order[:-1][same]
+    other = tags[order[1:][same]] != tags[first]
+    again[order[1:][same][~other]] = False
+    if not again.any():
+        return rows, tags, ids
+    pairs = sorted({(int(a), int(b)) for a, b in zip(tags[first][other],
+                                                    tags[order[1:][same]][other], strict=True)})
+    warnings.warn(f"{f.path}: {int(again.sum())} triangles are given again with another "
+                  f"physical tag (tags {', '.join(f'{a} and {b}' for a, b in pairs[:3])}: a "
+                  "surface in several physical groups); a triangle holds one tag, so each "
+                  "keeps its first", stacklevel=2)
+    keep = ~again
+    return rows[keep], tags[keep], ids[keep]
 
 
 def _field(c: _Content, where: str, name: str, values: NDArray, rows: NDArray, size: int
