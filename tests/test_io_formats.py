@@ -413,3 +413,22 @@ def test_entities_in_several_physical_groups(tmp_path):
                            mesh.edge_tags.tolist(), strict=True))
         assert edges == sorted(zip(map(tuple, np.sort(reference.edges, axis=1).tolist()),
                                    reference.edge_tags.tolist(), strict=True)), path.name
+
+
+def test_msh40_that_meshio_cannot_read_says_why(tmp_path):
+    """MSH 4.0 goes through meshio, which prints its reason and exits on Gmsh 4.0 files with
+    parametric nodes: the message carries the reason (it said only 'unreadable')."""
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        r = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
+        gmsh.model.occ.synchronize()
+        gmsh.model.addPhysicalGroup(2, [r], 4, "domain")
+        gmsh.model.mesh.generate(2)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.0)
+        gmsh.write(str(tmp_path / "old.msh"))
+    finally:
+        gmsh.finalize()
+    with pytest.raises(ValueError, match=r"old\.msh: not a readable Gmsh MSH file \(meshio: "
+                                         r"parametric nodes not implemented\)"):
+        qdrefine.read(tmp_path / "old.msh")

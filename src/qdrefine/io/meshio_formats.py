@@ -33,11 +33,15 @@ def quiet_meshio(path: Path) -> Iterator[None]:
     """Silence meshio's Python warnings and turn what it prints on stderr or stdout into
     one :class:`UserWarning` naming ``path``."""
     buffer = io_module.StringIO()
-    with warnings.catch_warnings(), contextlib.redirect_stderr(buffer), \
-            contextlib.redirect_stdout(buffer):
-        warnings.simplefilter("ignore")
-        yield
-    text = " ".join(buffer.getvalue().split())  # only reached on success
+    try:
+        with warnings.catch_warnings(), contextlib.redirect_stderr(buffer), \
+                contextlib.redirect_stdout(buffer):
+            warnings.simplefilter("ignore")
+            yield
+    except (Exception, SystemExit) as exc:  # what meshio printed before failing says why
+        exc.meshio_output = buffer.getvalue()  # type: ignore[union-attr]
+        raise
+    text = " ".join(buffer.getvalue().split())
     if text:
         text = text.removeprefix("Warning:").strip()
         warnings.warn(f"{path}: meshio: {text}", stacklevel=4)
@@ -46,8 +50,10 @@ def quiet_meshio(path: Path) -> Iterator[None]:
 def unreadable(path: Path, name: str, exc: BaseException) -> ValueError:
     text = str(exc).strip()
     detail = text.splitlines()[0] if text else ""
-    if isinstance(exc, SystemExit):
-        detail = "unreadable"
+    if isinstance(exc, SystemExit):  # meshio printed its reason, then exited
+        said = getattr(exc, "meshio_output", "").split("Error: Couldn't read file")[0]
+        printed = [line.strip() for line in said.splitlines() if line.strip()]
+        detail = f"meshio: {printed[-1]}" if printed else "unreadable"
     elif not detail:
         detail = type(exc).__name__
     return ValueError(f"{path}: not a readable {name} file ({detail[:200]})")
