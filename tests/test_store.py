@@ -303,10 +303,18 @@ def test_temporaries_of_dead_runs_are_cleaned(tmp_path):
         ".m.zarr.ab12cd34.work": True,
         ".other.zarr.ab12cd34.tmp": False,                   # another target's
         "m.zarr.bak": False,
+        # a user's, only looking like ours (review: all three were removed)
+        ".m.zarr.backup.old": False,
+        ".m.zarr.2024.work": False,
+        f".m.zarr~backup~{dead}~mine.old": False,
+        # a temporary of m.zarr.zarr, not of m.zarr
+        f".m.zarr.zarr~{host}~{dead}~0a1b2c3d.tmp": False,
     }
     for name in names:
         (tmp_path / name).mkdir()
         (tmp_path / name / "zarr.json").write_text("{}")
+    (tmp_path / ".m.zarr.ab12cd34.old").write_text("a user's file: only directories are ours")
+    names[".m.zarr.ab12cd34.old"] = False
     removed = store.clean(tmp_path / "m.zarr")
     assert sorted(Path(r).name for r in removed) == sorted(n for n, gone in names.items()
                                                            if gone)
@@ -317,6 +325,9 @@ def test_temporaries_of_dead_runs_are_cleaned(tmp_path):
     assert sorted(Path(r).name for r in removed) == sorted(
         [f".m.zarr~{host}~{os.getpid()}~0a1b2c3d.tmp", f".m.zarr~elsewhere~{dead}~0a1b2c3d.tmp"])
     assert store.is_store(tmp_path / "m.zarr")
+    # cleaning store "m" leaves every temporary of "m.zarr" (review: a live run's went)
+    (tmp_path / f".m.zarr~{host}~{dead}~0a1b2c3d.tmp").mkdir()
+    assert store.clean(tmp_path / "m", everything=True) == []
 
 
 @pytest.mark.parametrize("binary", [False, True])

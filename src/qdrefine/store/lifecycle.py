@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import socket
 from collections.abc import Iterator
 from pathlib import Path
@@ -56,17 +57,16 @@ def temporary(url: str, suffix: str) -> str:
 
 def maker_of(entry: str, name: str) -> tuple[str, int] | None | bool:
     """For an entry of the target's parent: False if it is not a temporary of ``name``;
-    ``(host, pid)`` of the run that made it; None when unknown (older qdrefine versions
-    named them ``.NAME.XXXXXXXX.tmp`` / ``.work`` / ``.old``)."""
-    if not entry.startswith(f".{name}"):
-        return False
-    rest = entry[len(name) + 1:]
-    if rest.startswith("~") and rest.endswith((TMP, OLD)):
-        fields = rest[1:].rsplit(".", 1)[0].split("~")
-        if len(fields) == 3 and fields[1].isdigit():
-            return fields[0], int(fields[1])
-        return False
-    if rest.startswith(".") and rest.endswith((TMP, OLD, ".work")) and rest.count(".") == 2:
+    ``(host, pid)`` of the run that made it (``.NAME~HOST~PID~TOKEN.tmp`` / ``.old``, the
+    token 8 hex digits, :func:`temporary`); None when unknown (older qdrefine versions
+    named them ``.NAME.XXXXXXXX.tmp`` / ``.work`` / ``.old`` with :func:`tempfile.mkdtemp`'s
+    8 characters). Nothing else matches: a user's ``.NAME.backup.old`` is not ours, and
+    neither is a temporary of ``NAME.zarr`` when ``name`` is ``NAME``."""
+    found = re.fullmatch(rf"\.{re.escape(name)}~([^~/]+)~(\d+)~[0-9a-f]{{8}}(\.tmp|\.old)",
+                         entry)
+    if found:
+        return found.group(1), int(found.group(2))
+    if re.fullmatch(rf"\.{re.escape(name)}\.[a-z0-9_]{{8}}(\.tmp|\.old|\.work)", entry):
         return None
     return False
 
@@ -101,8 +101,8 @@ def clean(path: PathLike, everything: bool = False) -> list[str]:
     removed = []
     for entry in sorted(entries):
         owner = maker_of(entry, name)
-        if owner is False:
-            continue
+        if owner is False or not fs.isdir(f"{root.rstrip('/')}/{entry}"):
+            continue  # not ours: temporaries are directories (stores)
         if everything or owner is None or not alive(*owner):
             remove(join(parent, entry))
             removed.append(join(parent, entry))
