@@ -374,3 +374,21 @@ def test_msh_export_of_many_tags_takes_two_passes(tmp_path, monkeypatch, binary)
         assert len(gmsh.model.getEntities(2)) == len(np.unique(tags))
     finally:
         gmsh.finalize()
+
+
+def test_file_urls_are_local_paths(tmp_path):
+    """``file://`` URLs are local paths (review: a store could not be created at one, and a
+    source spelled ``file://...`` was replaced by its own refinement when the target was
+    the same store spelled as a path); a target inside the source store is refused."""
+    from qdrefine.distributed import refine_store
+
+    url = f"file://{tmp_path}/m.zarr"
+    assert store.location(url) == str(tmp_path / "m.zarr")
+    store.create(url, examples.square(2))
+    assert store.is_store(tmp_path / "m.zarr")
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    with pytest.raises(ValueError, match="the target would overwrite the source"):
+        refine_store(url, tmp_path / "m.zarr")
+    with pytest.raises(ValueError, match="the target would be inside the source store"):
+        refine_store(tmp_path / "m.zarr", f"{url}/inner.zarr")
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before

@@ -175,7 +175,8 @@ def _files(path: Path) -> set[Path]:
     """The files that the mesh file ``path`` is made of, as identities: Triangle files by
     their common base name, an XDMF file with its HDF5 file (``name.h5``, shared by
     ``name.xdmf`` and ``name.xmf``)."""
-    p = path.resolve()
+    text = str(path)
+    p = Path(text[len("file://"):] if text.startswith("file://") else text).resolve()
     if p.suffix.lower() in (".node", ".ele", ".poly"):
         return {p.with_suffix(".triangle")}
     if p.suffix.lower() in (".xdmf", ".xmf"):

@@ -141,6 +141,9 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
     url = mesh_store.location(target)
     if url == src.path:
         raise ValueError(f"{url}: the target would overwrite the source; choose another path")
+    if url.startswith(src.path.rstrip("/") + "/"):
+        raise ValueError(f"{url}: the target would be inside the source store {src.path}; "
+                         "choose another path")
     if src.n_points > MAX_POINTS:
         raise ValueError(f"{src.path}: {src.n_points} points; distributed refinement "
                          f"handles at most {MAX_POINTS} (int64 edge keys)")

@@ -12,12 +12,14 @@ PathLike = str | os.PathLike
 
 def location(path: PathLike) -> str:
     """``path`` as the string every process can use: a URL (``scheme://...``) unchanged but
-    for a trailing ``/``, a local path made absolute.
+    for a trailing ``/``, a local path (``file://`` URLs included) made absolute.
 
     >>> location("memory://a/b.zarr/")
     'memory://a/b.zarr'
     """
     text = os.fspath(path)
+    if text.startswith("file://"):  # a local path: one spelling, so that it compares
+        text = text[len("file://"):]
     if "://" in text:
         return text.rstrip("/")
     return os.path.abspath(text)
