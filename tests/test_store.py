@@ -258,6 +258,11 @@ def test_unwritten_chunks_fail_validation_and_incomplete_stores_are_refused(tmp_
     store.finish(str(tmp_path / "half.zarr"))  # even if marked complete by mistake:
     with pytest.raises(ValueError, match="half.zarr: .*triangle 1 .*-1"):
         store.to_mesh(tmp_path / "half.zarr")
+    for out in ("half.msh", "half.node"):  # streamed exports check every chunk (review)
+        with pytest.raises(ValueError, match="half.zarr: triangles row 1 holds the fill value "
+                                             "of a chunk that was never written"):
+            store.to_file(tmp_path / "half.zarr", tmp_path / out)
+    assert not list(tmp_path.glob("half.[mne]*")) and not list(tmp_path.glob(".half*"))
     group = store.new_group(str(tmp_path / "nan.zarr"), {
         "points": ((3, 2), np.float64), "triangles": ((1, 3), np.int32)}, 2)
     group["triangles"][:] = GOOD["triangles"]
@@ -392,3 +397,18 @@ def test_file_urls_are_local_paths(tmp_path):
     with pytest.raises(ValueError, match="the target would be inside the source store"):
         refine_store(tmp_path / "m.zarr", f"{url}/inner.zarr")
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+
+
+def test_refine_dask_says_why_a_store_is_not_one(tmp_path, monkeypatch, capsys):
+    """``refine IN.zarr OUT.zarr --dask`` with an incomplete store: the store's own reason,
+    not 'make one with qdrefine convert' (review); before any cluster is started."""
+    from qdrefine.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    group = store.new_group(str(tmp_path / "half.zarr"), {
+        "points": ((3, 2), np.float64), "triangles": ((1, 3), np.int32)}, 1)
+    group["points"][:] = GOOD["points"]
+    assert main(["refine", "half.zarr", "out.zarr", "--dask"]) == 1
+    assert "half.zarr: incomplete mesh store" in capsys.readouterr().err
+    assert main(["refine", "none.zarr", "out.zarr", "--dask"]) == 1
+    assert "none.zarr: no such mesh store" in capsys.readouterr().err

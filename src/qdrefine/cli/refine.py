@@ -127,10 +127,13 @@ def _uniform(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress,
 def _on_dask(args: argparse.Namespace) -> int:
     """``--dask``: store to store on a Dask cluster (:func:`qdrefine.distributed.refine_store`)."""
     from ..distributed import refine_store
-    from ..store import is_store
+    from ..store import is_store, location
+    from ..store.layout import group_of
 
     _common.check_compress(args.output, args.compress)
     if not is_store(args.input):
+        if args.input.rstrip("/").lower().endswith(_common.STORE) or "://" in args.input:
+            group_of(location(args.input))  # why it is not one: incomplete, missing, ...
         raise ValueError(f"{args.input}: --dask needs a Zarr mesh store as IN (a path or URL); "
                          f"make one with 'qdrefine convert {args.input} IN.zarr'")
     if "://" in args.output:  # a URL (s3://, memory://, ...): no local checks apply

@@ -18,6 +18,7 @@ from ..mesh import Mesh
 from .layout import (
     ARRAYS,
     DEFAULT_CHUNK_SIZE,
+    FILL,
     MeshStore,
     as_store,
     chunk_size_of,
@@ -138,14 +139,28 @@ def any_zero(s: MeshStore, name: str) -> bool:
 
 
 def rows(s: MeshStore, name: str, step: int | None = None) -> Iterator[tuple[int, NDArray]]:
-    """``(start, rows)`` of array ``name``, ``step`` rows (default: its chunk) at a time."""
+    """``(start, rows)`` of array ``name``, ``step`` rows (default: its chunk) at a time;
+    rows that hold the fill value of unwritten chunks are refused."""
     z = s.zarr_array(name)
     step = step or z.chunks[0]
     for start in range(0, z.shape[0], step):
-        yield start, z[start:start + step]
+        yield start, _written(s, name, start, z[start:start + step])
 
 
 def rows_between(s: MeshStore, name: str, start: int, stop: int) -> NDArray:
-    return s.zarr_array(name)[start:stop]
+    return _written(s, name, start, s.zarr_array(name)[start:stop])
+
+
+def _written(s: MeshStore, name: str, start: int, block: NDArray) -> NDArray:
+    """``block`` (rows ``start ..`` of array ``name``), unless it holds the array's fill
+    value (:data:`~qdrefine.store.layout.FILL`): a chunk that was never written (a store
+    another tool marked complete, or damaged since), which must not pass for data."""
+    fill = FILL.get(name)
+    hole = np.isnan(block) if fill is not None and np.isnan(fill) else block == fill
+    if fill is not None and hole.any():
+        row = start + int(np.flatnonzero(hole.reshape(len(block), -1).any(axis=1))[0])
+        raise ValueError(f"{s.path}: {name} row {row} holds the fill value of a chunk that "
+                         "was never written: the store is incomplete or damaged")
+    return block
 
 
