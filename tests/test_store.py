@@ -412,3 +412,17 @@ def test_refine_dask_says_why_a_store_is_not_one(tmp_path, monkeypatch, capsys):
     assert "half.zarr: incomplete mesh store" in capsys.readouterr().err
     assert main(["refine", "none.zarr", "out.zarr", "--dask"]) == 1
     assert "none.zarr: no such mesh store" in capsys.readouterr().err
+
+
+def test_what_a_store_cannot_hold_is_dropped_with_a_warning(tmp_path):
+    """Point and cell data, physical names and the history: dropped with one warning, as
+    ``qdrefine.write`` warns for formats that cannot hold them (review: silently)."""
+    mesh = examples.square(2).replace(point_data={"u": np.zeros(9)},
+                                      physical_names={(2, 1): "a"})
+    with pytest.warns(UserWarning, match=r"m\.zarr: mesh stores hold points, triangles, cell "
+                                         r"tags and tagged edges; point data, physical names "
+                                         r"are dropped"):
+        store.create(tmp_path / "m.zarr", mesh)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        store.create(tmp_path / "plain.zarr", examples.square(2))
