@@ -534,3 +534,55 @@ def test_the_profiler_stays_off_in_a_restarted_worker_process():
         assert list(c.run(_profiling).values()) == [False]
         c.restart()
         assert list(c.run(_profiling).values()) == [False]
+
+
+def _sigint_disposition():
+    import signal
+
+    return signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+
+
+def test_worker_processes_leave_ctrl_c_to_the_client(process_client):
+    """A terminal's Ctrl-C reaches the whole process group: the worker processes of a
+    local cluster ignore it (each printed a KeyboardInterrupt traceback, review), the
+    client stops the run (restarted workers too: the preload runs in each)."""
+    import signal
+
+    assert all(process_client.run(_sigint_disposition).values())
+    assert signal.getsignal(signal.SIGINT) is not signal.SIG_IGN  # not the client's
+
+
+def test_signals_during_cluster_start_up_wait_for_it():
+    """Ctrl-C or SIGTERM while a cluster starts is held until it has started (Dask logged
+    tracebacks from its exit hooks); and the NameError that distributed's sync logs when
+    an interrupt comes before its call started is dropped, nothing else."""
+    import logging
+    import signal
+
+    from qdrefine.distributed.cluster import _DaskCancelError
+    from qdrefine.interrupts import signals_held
+
+    held: list[int] = []
+    before = signal.getsignal(signal.SIGTERM)
+    with signals_held(held):
+        signal.raise_signal(signal.SIGINT)
+        signal.raise_signal(signal.SIGTERM)
+    assert held == [signal.SIGINT, signal.SIGTERM]
+    assert signal.getsignal(signal.SIGTERM) is before
+    with pytest.raises(KeyboardInterrupt):
+        signal.raise_signal(signal.SIGINT)  # acts again once released
+
+    def record(kind, message):
+        try:
+            raise kind("cannot access free variable 'future'")
+        except kind:
+            import sys
+
+            return logging.LogRecord("tornado.application", logging.ERROR, __file__, 1,
+                                     message, (), sys.exc_info())
+
+    keep = _DaskCancelError().filter
+    assert not keep(record(NameError, "Exception in callback functools.partial(<function "
+                                      "sync.<locals>.cancel at 0x7f>)"))
+    assert keep(record(NameError, "Exception in callback functools.partial(<function f>)"))
+    assert keep(record(ValueError, "Exception in callback sync.<locals>.cancel"))

@@ -10,7 +10,7 @@ import threading
 from collections.abc import Iterator
 from typing import Any
 
-__all__ = ["sigterm_as_interrupt", "TERMINATED"]
+__all__ = ["sigterm_as_interrupt", "signals_held", "TERMINATED"]
 
 #: The message of the ``KeyboardInterrupt`` that SIGTERM raises.
 TERMINATED = "terminated (SIGTERM)"
@@ -32,3 +32,28 @@ def sigterm_as_interrupt() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, before)
+
+
+@contextlib.contextmanager
+def signals_held(held: list[int]) -> Iterator[None]:
+    """SIGINT and SIGTERM are held back (appended to ``held``) instead of acting, while code
+    that cannot be interrupted cleanly runs (main thread only; elsewhere nothing changes);
+    the handlers before are restored after. The caller acts on ``held`` once it can clean
+    up (``signal.raise_signal(held[0])``).
+
+    A Dask cluster interrupted while it starts leaves Dask's own error messages and exit
+    hooks with tracebacks (a ``NameError`` in ``distributed.utils.sync``, an
+    ``AssertionError`` in ``close_clusters``)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def hold(signum: int, frame: Any) -> None:  # noqa: ARG001
+        held.append(signum)
+
+    before = {s: signal.signal(s, hold) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, handler)

@@ -11,11 +11,13 @@ import contextlib
 import importlib.util
 import logging
 import os
+import signal
 import time
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from .. import store as mesh_store
+from ..interrupts import signals_held
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -64,9 +66,17 @@ def local_client(n_workers: int | None = None, memory_limit: str | float = "auto
     # any free port (the link is printed), so that two runs side by side do not fight over
     # Dask's default 8787; without bokeh the HTTP server still serves health checks
     cluster_kwargs.setdefault("dashboard_address", ":0")
-    # a client given cluster arguments starts its own LocalCluster and closes it on close()
-    client = Client(n_workers=n_workers or CPU_COUNT, threads_per_worker=1,
-                    processes=processes, memory_limit=memory_limit, **cluster_kwargs)
+    if processes:  # worker processes ignore a terminal's Ctrl-C: the client handles it
+        cluster_kwargs.setdefault("preload", ["qdrefine.distributed.worker_setup"])
+    # a client given cluster arguments starts its own LocalCluster and closes it on close();
+    # Ctrl-C or SIGTERM while it starts acts once it has started (and is closed again)
+    held: list[int] = []
+    with signals_held(held):
+        client = Client(n_workers=n_workers or CPU_COUNT, threads_per_worker=1,
+                        processes=processes, memory_limit=memory_limit, **cluster_kwargs)
+    if held:
+        client.close()
+        signal.raise_signal(held[0])
     if not profile:  # a plugin: it also reaches workers restarted after a kill
         from .plugins import NoProfiler
 
@@ -89,6 +99,7 @@ def connect(client: Client | None, address: str | None, in_process: bool = False
     if client is not None:
         yield client, _dashboard(client)
         return
+    _ignore_dask_cancel_error()
     if address is not None:
         from distributed import Client
 
@@ -105,6 +116,23 @@ def connect(client: Client | None, address: str | None, in_process: bool = False
     finally:
         with contextlib.suppress(Exception):
             own.close()
+
+
+class _DaskCancelError(logging.Filter):
+    """Drops one record: the ``NameError`` that ``distributed.utils.sync``'s ``cancel``
+    callback raises (and tornado logs with its traceback) when Ctrl-C or SIGTERM arrives
+    before the awaited call has started (its ``future`` is not assigned yet; distributed
+    2026.7). Nothing was left to cancel; the interrupt itself goes on as usual."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        kind = record.exc_info[0] if record.exc_info else None
+        return not (kind is NameError and "sync.<locals>.cancel" in record.getMessage())
+
+
+def _ignore_dask_cancel_error() -> None:
+    logger = logging.getLogger("tornado.application")
+    if not any(isinstance(f, _DaskCancelError) for f in logger.filters):
+        logger.addFilter(_DaskCancelError())
 
 
 def _quiet_worker_logs() -> None:

@@ -7,10 +7,12 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import signal
 import socket
 from collections.abc import Iterator
 from pathlib import Path
 
+from ..interrupts import signals_held
 from ..io import permission_bits
 from .layout import finish, is_store
 from .locations import PathLike, filesystem, is_local, join, location, split
@@ -104,9 +106,17 @@ def clean(path: PathLike, everything: bool = False) -> list[str]:
         if owner is False or not fs.isdir(f"{root.rstrip('/')}/{entry}"):
             continue  # not ours: temporaries are directories (stores)
         if everything or owner is None or not alive(*owner):
+            if entry.endswith(OLD) and is_local(url) and not os.path.exists(root_of(url)):
+                # a run killed between its two renames: the target was this, put it back
+                os.rename(f"{root.rstrip('/')}/{entry}", root_of(url))
+                continue
             remove(join(parent, entry))
             removed.append(join(parent, entry))
     return removed
+
+
+def root_of(url: str) -> str:
+    return filesystem(url)[1]
 
 
 def remove(url: str) -> None:
@@ -135,9 +145,17 @@ def replace(tmp: str, url: str) -> None:
             os.rename(tmp_root, root)
             return
         old = filesystem(temporary(url, OLD))[1]
-        os.rename(root, old)
-        os.rename(tmp_root, root)
+        held: list[int] = []
+        with signals_held(held):  # the target is absent between the renames
+            os.rename(root, old)
+            try:
+                os.rename(tmp_root, root)
+            except OSError:
+                os.rename(old, root)
+                raise
         remove(old)
+        if held:  # the new store is in place: the interrupt acts now
+            signal.raise_signal(held[0])
         return
     # object stores: no rename. The old target's root zarr.json goes first (it is no longer
     # a store), the new one's last (it becomes one only when everything else is there).
