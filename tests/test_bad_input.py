@@ -175,8 +175,8 @@ CASES: dict[str, Case] = {
         mesh_message="triangle 4 (5, 6, 7) overlaps another part of the mesh"),
     "3D non-flat input": Case({"in.msh": msh22([(0, 0, 0), (1, 0, 0), (0, 1, 0.5)],
                                                [(0, 1, 2)])}, "in.msh",
-                              "in.msh: the mesh is not flat: 1 of 3 points have z != 0",
-                              kind="not-flat"),
+                              "in.msh: the mesh is not flat: 1 of 3 points have z != 0 "
+                              "(first: point 3, z = 0.5)", kind="not-flat"),
     "tagged edge not in the mesh": Case({"in.msh": msh22(SQ, SQ_TRIS, lines=[(1, 3)])},
                                         "in.msh", "edge 3 (2, 4) is not an edge of any "
                                         "triangle", kind="edge-not-in-mesh"),
@@ -891,3 +891,14 @@ def test_half_floats_and_text_vtu(tmp_path):
     assert np.array_equal(vtk, mesh.point_data["h"].astype(np.float32))
     with pytest.raises(ValueError, match=r"t\.vtu: VTU files are written with binary data only"):
         qdrefine.write(tmp_path / "t.vtu", square, binary=False)
+
+
+def test_a_number_with_an_underscore_is_named(tmp_path):
+    """``1_0``: NumPy's parser stops at it, Python's ``float`` reads it as 10; the message
+    named the whole section instead of the word (review)."""
+    path = tmp_path / "u.msh"
+    path.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1_0 0 0\n"
+                    "3 0 1 0\n$EndNodes\n$Elements\n1\n1 2 2 1 1 1 2 3\n$EndElements\n")
+    with pytest.raises(ValueError, match=r"u\.msh: not a readable Gmsh MSH file \(line 7: "
+                                         r"expected a number, got '1_0'\)$"):
+        qdrefine.read(path)

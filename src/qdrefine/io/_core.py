@@ -127,8 +127,9 @@ def flat_points(raw: RawMesh, points: NDArray) -> None:
             number = int(raw.point_numbers[i]) if raw.point_numbers is not None else i + raw.base
             raw.flat = False
             raw.problem("not-flat", f"the mesh is not flat: {int(bad.sum())} of {len(points)} "
-                        f"points have z != 0 (first: point {number}, z = {z[i]!r}); qdrefine "
-                        "reads 2D meshes, or 3D ones with z = 0", int(bad.sum()), point=number)
+                        f"points have z != 0 (first: point {number}, z = {float(z[i])!r}); "
+                        "qdrefine reads 2D meshes, or 3D ones with z = 0", int(bad.sum()),
+                        point=number)
         points = points[:, :2]
     raw.points = np.ascontiguousarray(points, dtype=np.float64)
 

@@ -43,6 +43,8 @@ def parse(text: bytes, dtype: type, what: str = "a number") -> NDArray:
     for number, line in enumerate(text.split(b"\n"), start=1):
         for word in line.split():
             try:
+                if b"_" in word:  # Python reads 1_0 as 10; the files' C readers do not
+                    raise ValueError(word)
                 value = convert(word)
             except ValueError:
                 raise BadNumber(number, word.decode("utf-8", "replace"),
