@@ -902,3 +902,27 @@ def test_a_number_with_an_underscore_is_named(tmp_path):
     with pytest.raises(ValueError, match=r"u\.msh: not a readable Gmsh MSH file \(line 7: "
                                          r"expected a number, got '1_0'\)$"):
         qdrefine.read(path)
+
+
+def test_parametric_nodes_and_repeated_views(tmp_path):
+    """MSH 2.2 saved with Mesh.SaveParametric has ``$ParametricNodes`` instead of
+    ``$Nodes``: said so (it said 'no $Nodes section'). A view with two time steps: the last
+    is kept, with a warning (silently before; review)."""
+    head = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n"
+    tail = "$Elements\n1\n1 2 2 1 1 1 2 3\n$EndElements\n"
+    (tmp_path / "p.msh").write_text(head + "$ParametricNodes\n3\n1 0 0 0 0 0\n2 1 0 0 0 0\n"
+                                    "3 0 1 0 0 0\n$EndParametricNodes\n" + tail)
+    with pytest.raises(ValueError, match=r"p\.msh: .*\$ParametricNodes \(a file saved with "
+                                         r"Mesh\.SaveParametric\) is not read"):
+        qdrefine.read(tmp_path / "p.msh")
+
+    def step(t, value):
+        return (f'$NodeData\n1\n"u"\n1\n{t}\n3\n{t}\n1\n3\n1 {value}\n2 {value}\n3 {value}\n'
+                "$EndNodeData\n")
+
+    (tmp_path / "s.msh").write_text(head + "$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n$EndNodes\n"
+                                    + tail + step(0, 1.5) + step(1, 2.5))
+    with pytest.warns(UserWarning, match=r"s\.msh: \$NodeData 'u' is given more than once "
+                                         r"\(time steps of a view\); the last one is kept"):
+        mesh = qdrefine.read(tmp_path / "s.msh")
+    assert mesh.point_data["u"].tolist() == [2.5, 2.5, 2.5]

@@ -123,6 +123,9 @@ def _read(f: _File) -> RawMesh:
         if not c.version and name != "MeshFormat":
             raise f.error(pos, "no $MeshFormat section at the start")
         handler = _HANDLERS.get(name)
+        if name == "ParametricNodes":  # MSH 2.2 with Mesh.SaveParametric: not $Nodes
+            raise f.error(pos, "$ParametricNodes (a file saved with Mesh.SaveParametric) is "
+                               "not read; save the mesh without it")
         if handler is None:
             end = f.end_of(name, start)
         else:
@@ -555,6 +558,9 @@ def _data_section(kind: str):
                               else "element")
             v = np.ascontiguousarray(numbers[:, 1:])
         target = c.node_data if kind == "NodeData" else c.element_data
+        if name in target:  # a view's later time step: one field per name
+            warnings.warn(f"{f.path}: ${kind} {name!r} is given more than once (time steps "
+                          "of a view); the last one is kept", stacklevel=2)
         target[name] = (tags, v)
         return end
     return handler
