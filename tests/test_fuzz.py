@@ -30,6 +30,7 @@ from oracle import exact, orient
 from qdrefine import Mesh, check, refine
 from qdrefine.cli import main
 from qdrefine.io import check_file
+from qdrefine.io.meshio_formats import write_with_meshio
 from qdrefine.kernels import rounding_suspects
 from qdrefine.topology import conformity
 
@@ -79,7 +80,11 @@ def _seeds() -> dict[str, dict[str, bytes]]:
                                      ("off", ".off", plain, None), ("obj", ".obj", plain, None),
                                      ("stl", ".stl", plain, False), ("ply", ".ply", plain, False),
                                      ("triangle", ".ele", mesh, None)):
-            qdrefine.write(Path(tmp) / f"m{ext}", m, binary=binary)
+            if name == "vtu":  # a text VTU (meshio's; qdrefine writes binary only)
+                write_with_meshio(Path(tmp) / "m.vtu", m, "vtu", tags=True, data=True,
+                                  binary=False)
+            else:
+                qdrefine.write(Path(tmp) / f"m{ext}", m, binary=binary)
             out[name] = {p.name: p.read_bytes() for p in Path(tmp).iterdir()}
             for p in Path(tmp).iterdir():
                 p.unlink()

@@ -4,6 +4,7 @@ meshio, and bad files named by line or byte."""
 
 from __future__ import annotations
 
+import contextlib
 import tempfile
 import warnings
 from pathlib import Path
@@ -361,6 +362,26 @@ def test_binary_msh22_with_one_block_per_element(tmp_path):
         qdrefine.read(tmp_path / "c.msh")
 
 
+@contextlib.contextmanager
+def own_gmsh_model(name: str):
+    """A Gmsh model of this test's own, beside the module's ``gmsh_model`` if that one is
+    open (finalizing Gmsh here would close it under the other tests)."""
+    started = not gmsh.isInitialized()
+    if started:
+        gmsh.initialize(interruptible=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    before = None if started else gmsh.model.getCurrent()
+    gmsh.model.add(name)
+    try:
+        yield gmsh
+    finally:
+        gmsh.model.remove()
+        if before:
+            gmsh.model.setCurrent(before)
+        if started:
+            gmsh.finalize()
+
+
 def test_entities_in_several_physical_groups(tmp_path):
     """A curve in two physical groups ("boundary" and "inlet") and a surface in two
     ("domain" and "everything"), as Gmsh writes them: MSH 2.2 repeats the elements once per
@@ -368,9 +389,7 @@ def test_entities_in_several_physical_groups(tmp_path):
     same mesh: every tagged line once per group, each triangle once with its first group's
     tag and a warning for the other (review: 2.2 was refused as 'edge shared by 4
     triangles', 4.1 dropped the inlet's lines silently)."""
-    gmsh.initialize(interruptible=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with own_gmsh_model("groups"):
         r = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
         gmsh.model.occ.synchronize()
         curves = [t for _, t in gmsh.model.getEntities(1)]
@@ -389,8 +408,6 @@ def test_entities_in_several_physical_groups(tmp_path):
                 gmsh.option.setNumber("Mesh.MshFileVersion", version)
                 gmsh.option.setNumber("Mesh.Binary", binary)
                 gmsh.write(str(tmp_path / f"surface-{version}-{binary}.msh"))
-    finally:
-        gmsh.finalize()
     for version in (2.2, 4.1):
         with warnings.catch_warnings():
             warnings.simplefilter("error")
@@ -418,17 +435,14 @@ def test_entities_in_several_physical_groups(tmp_path):
 def test_msh40_that_meshio_cannot_read_says_why(tmp_path):
     """MSH 4.0 goes through meshio, which prints its reason and exits on Gmsh 4.0 files with
     parametric nodes: the message carries the reason (it said only 'unreadable')."""
-    gmsh.initialize(interruptible=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with own_gmsh_model("old"):
         r = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
         gmsh.model.occ.synchronize()
         gmsh.model.addPhysicalGroup(2, [r], 4, "domain")
         gmsh.model.mesh.generate(2)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.0)
+        gmsh.option.setNumber("Mesh.Binary", 0)
         gmsh.write(str(tmp_path / "old.msh"))
-    finally:
-        gmsh.finalize()
     with pytest.raises(ValueError, match=r"old\.msh: not a readable Gmsh MSH file \(meshio: "
                                          r"parametric nodes not implemented\)"):
         qdrefine.read(tmp_path / "old.msh")
