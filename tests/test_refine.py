@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 import qdrefine
 from meshes import jittered_grid
 from oracle import exact, orient
-from qdrefine import Mesh, examples, refine, refine_with_parents, scheme_names
+from qdrefine import Mesh, examples, partition, refine, refine_with_parents, scheme_names
 from qdrefine.kernels import number_edges, rounding_suspects
 from qdrefine.predicates import orient_signs
 from qdrefine.schemes import get_scheme
@@ -199,3 +199,23 @@ def test_triangles_not_flagged_never_get_a_bad_child(log_offset_x, log_offset_y,
         flagged = rounding_suspects(mesh.points, mesh.triangles, k + 1)[0]
         if not flagged:
             assert (orient_signs(fine.points, fine.triangles) > 0).all()
+
+
+def test_refinement_stays_in_the_range_of_exact_predicates():
+    """A mesh at the lower end of the coordinate range (review): its new points would fall
+    below 1e-100, which Mesh and partition refuse (exactness); refine says so instead of
+    returning a mesh it cannot take back. One level of a mesh whose smallest coordinate is
+    1e-83 provably stays in range (no check); complex coordinates are refused, not cast."""
+    tiny = Mesh(np.array([[0.0, 0.0], [1.2e-100, 0.0], [0.0, 1.2e-100]]), [[0, 1, 2]])
+    for call in (lambda: refine(tiny), lambda: refine_with_parents(tiny, "4t-le"),
+                 lambda: refine(tiny, marked=[0])):
+        with pytest.raises(ValueError, match=r"refining this mesh makes new point 3 at "
+                                             r"\([46]e-101, 0\.0\), below the supported range"):
+            call()
+    small = Mesh(tiny.points * 1e17, tiny.triangles)
+    fine = refine(small)
+    assert Mesh(fine.points, fine.triangles).n_triangles == 7  # valid input again
+    with pytest.raises(ValueError, match="points must be real numbers, got dtype complex128"):
+        Mesh(np.array([[0, 0], [1, 0], [0, 1j]]), [[0, 1, 2]])
+    with pytest.raises(ValueError, match="vertices must be real numbers"):
+        partition([[0, 0], [1, 0], [0.3, 0.5 + 2j]])

@@ -40,8 +40,7 @@ def partition(vertices: ArrayLike, scheme: str | Scheme = "7t-qd", *, strict: bo
     >>> pts.shape, tris.shape
     ((9, 2), (7, 3))
     """
-    pts, tris = partition_many(np.asarray(vertices, dtype=np.float64)[None], scheme,
-                               strict=strict)
+    pts, tris = partition_many(np.asarray(vertices)[None], scheme, strict=strict)
     return pts[0], tris[0]
 
 
@@ -64,6 +63,8 @@ def partition_many(vertices: ArrayLike, scheme: str | Scheme = "7t-qd", *, stric
         Local indices, as for :func:`partition`.
     """
     sch = get_scheme(scheme)
+    if np.asarray(vertices).dtype.kind == "c":  # the cast would drop the imaginary parts
+        raise ValueError(f"vertices must be real numbers, got dtype {np.asarray(vertices).dtype}")
     v = np.asarray(vertices, dtype=np.float64)
     if v.ndim != 3 or v.shape[1:] != (3, 2):
         raise ValueError(f"vertices must have shape (K, 3, 2), got {v.shape}")

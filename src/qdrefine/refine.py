@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 from .adaptive import refine_marked
 from .arguments import as_count
 from .mesh import Mesh
+from .predicates import COORDINATE_RANGE
 from .schemes import Scheme, get_scheme
 from .uniform import RefusedTriangle, refine_uniform
 
@@ -80,10 +81,11 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
             raise ValueError("local refinement (marked) runs on the CPU only")
         from .gpu import refine_mesh
 
-        return refine_mesh(mesh, scheme, levels, strict)
+        return _in_range(mesh, refine_mesh(mesh, scheme, levels, strict), levels)
     if marked is not None:
         return refine_with_parents(mesh, scheme, levels, marked)[0]
-    return refine_uniform(mesh, get_scheme(scheme), as_count(levels, "levels"), strict)
+    levels = as_count(levels, "levels")
+    return _in_range(mesh, refine_uniform(mesh, get_scheme(scheme), levels, strict), levels)
 
 
 def refine_with_parents(
@@ -92,8 +94,51 @@ def refine_with_parents(
 ) -> tuple[Mesh, NDArray[np.int64]]:
     """:func:`refine`, also returning ``parents (M',) int64``: the input triangle of each child."""
     if marked is not None:
-        return refine_marked(mesh, marked, scheme, levels)
+        out, parents = refine_marked(mesh, marked, scheme, levels)
+        return _in_range(mesh, out, as_count(levels, "levels")), parents
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
-    out = refine_uniform(mesh, sch, levels, strict)
+    out = _in_range(mesh, refine_uniform(mesh, sch, levels, strict), levels)
     return out, np.arange(out.n_triangles, dtype=np.int64) // sch.n_children**levels
+
+
+def _in_range(mesh: Mesh, out: Mesh, levels: int) -> Mesh:
+    """``out``, unless a new point of it has a nonzero coordinate below
+    :data:`~qdrefine.predicates.COORDINATE_RANGE` (the range of exact predicates, which
+    ``Mesh`` refuses on input): ``ValueError`` then.
+
+    A new point is ``(2a + b) / 3``, ``(a + b) / 2`` or ``(a + b + c) / 3`` of coordinates
+    that are 0 or at least ``m`` in magnitude; every sum of them is a multiple of
+    ``ulp(m) >= m 2^-53``, so a nonzero new coordinate is at least ``m 2^-55``. Only
+    meshes whose smallest nonzero coordinate ``m`` is within ``2^(55 levels)`` of the
+    range's lower end (about 1e-84 for one level) can leave it, and only then are the new
+    points checked. ``m`` is kept on the mesh (a pass over its points, 4 ms per million),
+    and the bound ``m 2^(-55 levels)`` on ``out``, for the next call."""
+    lo = COORDINATE_RANGE[0]
+    smallest = _smallest_coordinate(mesh)
+    bound = smallest * 2.0 ** (-55 * min(levels, 20))
+    if out.n_points > mesh.n_points and bound < lo:
+        new = np.abs(out.points[mesh.n_points:])
+        bad = ((new < lo) & (new != 0)).any(axis=1)
+        if bad.any():
+            i = mesh.n_points + int(np.flatnonzero(bad)[0])
+            raise ValueError(f"refining this mesh makes new point {i} at "
+                             f"{tuple(out.points[i].tolist())}, below the supported range "
+                             f"(nonzero coordinates of magnitude {lo:g} to "
+                             f"{COORDINATE_RANGE[1]:g}, where the predicates are exact); the "
+                             f"mesh's smallest nonzero coordinate is {smallest:g}: scale the "
+                             "mesh up")
+        bound = min(smallest, float(np.min(new, where=new > 0, initial=np.inf)))
+    object.__setattr__(out, "_smallest", bound)
+    return out
+
+
+def _smallest_coordinate(mesh: Mesh) -> float:
+    """The smallest nonzero coordinate magnitude of ``mesh`` (or a lower bound of it that
+    an earlier refinement left), ``inf`` if none."""
+    known = mesh.__dict__.get("_smallest")
+    if known is None:
+        a = np.abs(mesh.points)
+        known = float(np.min(a, where=a > 0, initial=np.inf))
+        object.__setattr__(mesh, "_smallest", known)
+    return known
