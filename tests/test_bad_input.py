@@ -854,11 +854,26 @@ def test_what_msh_and_xdmf_files_cannot_hold_is_refused(tmp_path):
     XDMF's XML: refused before anything is written (review)."""
     square = examples.square(2)
     big = square.replace(cell_tags=np.full(square.n_triangles, 2**31))
-    for kwargs in ({}, {"binary": True}, {"format_version": "2.2"},
-                   {"format_version": "2.2", "binary": True}):
-        with pytest.raises(ValueError, match=r"t\.msh: cell tag 2147483648 does not fit the "
-                                             "32-bit tags of Gmsh files"):
-            qdrefine.write(tmp_path / "t.msh", big, **kwargs)
+    for tag in (2**31, -(2**63)):  # the smallest int64 too (its absolute value wraps)
+        big = square.replace(cell_tags=np.full(square.n_triangles, tag))
+        for kwargs in ({}, {"binary": True}, {"format_version": "2.2"},
+                       {"format_version": "2.2", "binary": True}):
+            with pytest.raises(ValueError, match=rf"t\.msh: cell tag {tag} does not fit the "
+                                                 "32-bit tags of Gmsh files"):
+                qdrefine.write(tmp_path / "t.msh", big, **kwargs)
+    big = square.replace(cell_tags=np.full(square.n_triangles, 2**31))
+    from qdrefine import store
+
+    store.create(tmp_path / "big.zarr", big)  # a store's streamed export checks them too
+    with pytest.raises(ValueError, match=r"s\.msh: cell tag 2147483648 does not fit"):
+        store.to_file(tmp_path / "big.zarr", tmp_path / "s.msh", binary=True,
+                      format_version="2.2")
+    with pytest.raises(ValueError, match="the store's mark of chunks that were never"):
+        store.create(tmp_path / "fill.zarr", square.replace(
+            cell_tags=np.full(square.n_triangles, -(2**63))))
+    import shutil
+
+    shutil.rmtree(tmp_path / "big.zarr")
     assert qdrefine.read(_written(tmp_path / "t.vtu", big)).cell_tags.max() == 2**31
     named = square.replace(cell_tags=np.ones(square.n_triangles, np.int64),
                            physical_names={(2, 1): "two\nlines"})

@@ -74,6 +74,10 @@ def create(path: PathLike, mesh: Mesh, chunk_size: int = DEFAULT_CHUNK_SIZE,
                       f"{', '.join(dropped)} {'is' if len(dropped) == 1 else 'are'} dropped",
                       stacklevel=2)
     arrays = {name: getattr(mesh, name) for name in ARRAYS}
+    for name in ("cell_tags", "edge_tags"):
+        if arrays[name] is not None and (np.asarray(arrays[name]) == FILL[name]).any():
+            raise ValueError(f"{url}: {name} holds {FILL[name]}, the store's mark of chunks "
+                             "that were never written; it cannot be stored")
     with writing(url) as tmp:
         group = new_group(tmp, {k: spec_of(v) for k, v in arrays.items()}, chunk_size,
                           metadata)

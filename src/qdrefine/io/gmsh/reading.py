@@ -304,6 +304,16 @@ def _line_index(data: bytes, start: int, end: int):
 def _elements41_by_lines(f: _File, c: _Content, start: int, end: int) -> bool:
     """Text ``$Elements`` of MSH 4.1 with one element per line: each block parsed as a table
     (the fast path). False (and nothing stored) when the layout differs."""
+    several = len(c.several)  # entities in several groups noted by _block41
+    blocks = _element_tables(f, c, start, end)
+    if blocks is None:
+        del c.several[several:]  # the general parser notes them again
+        return False
+    c.blocks.extend(blocks)
+    return True
+
+
+def _element_tables(f: _File, c: _Content, start: int, end: int) -> list | None:
     line_start, lines = _line_index(f.data, start, end)
     blocks = []
     try:
@@ -312,20 +322,19 @@ def _elements41_by_lines(f: _File, c: _Content, start: int, end: int) -> bool:
         for _ in range(n_blocks):
             dim, ent, typ, n = (int(x) for x in lines(at, 1).split())
             if typ not in ELEMENTS:
-                return False
+                return None
             npe = ELEMENTS[typ][1]
             rows = parse_table(lines(at + 1, n), 1 + npe, dtype=np.int64) if n else \
                 np.empty((0, 1 + npe), np.int64)
             if rows.shape != (n, 1 + npe):
-                return False
+                return None
             blocks.append(_block41(c, typ, dim, ent, rows[:, 0], rows[:, 1:]))
             at += 1 + n
         if f.data[line_start[at]:end].strip():
-            return False
+            return None
     except (IndexError, ValueError):
-        return False
-    c.blocks.extend(blocks)
-    return True
+        return None
+    return blocks
 
 
 def _nodes41_by_lines(f: _File, start: int, end: int

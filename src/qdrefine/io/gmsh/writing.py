@@ -148,11 +148,25 @@ def write_chunks(path: Path, source: Chunks, *, binary: bool = False,
     bytes as :func:`write` of the whole mesh (without data or names), in memory of one
     chunk at a time."""
     _check_version(path, version)
+    for kind, what in (("triangles", "cell tag"), ("edges", "edge tag")):
+        if (source.cell_tags if kind == "triangles" else source.edge_tags) is not None:
+            for _, _, tags in source.cells(kind):  # one pass over the tags, before writing
+                check_tag_range(path, what, tags)
     _write(path, source, binary, version, {}, [])
 
 
-#: The largest tag an MSH file holds (Gmsh's tags are C ``int``; binary files write int32).
-LARGEST_TAG = 2**31 - 1
+#: The tags an MSH file holds (Gmsh's tags are C ``int``; binary files write int32).
+TAG_RANGE = (-(2**31), 2**31 - 1)
+
+
+def check_tag_range(path: Path, what: str, tags: NDArray) -> None:
+    """``ValueError`` naming the first of ``tags`` outside :data:`TAG_RANGE`."""
+    lo, hi = TAG_RANGE
+    tags = np.asarray(tags)
+    if tags.size and (tags.min() < lo or tags.max() > hi):
+        far = int(tags[np.flatnonzero((tags < lo) | (tags > hi))[0]])
+        raise ValueError(f"{path}: {what} {far} does not fit the 32-bit tags of Gmsh files "
+                         f"({lo} to {hi})")
 
 
 def _check_tags_and_names(path: Path, mesh) -> None:
@@ -160,11 +174,8 @@ def _check_tags_and_names(path: Path, mesh) -> None:
     would wrap them, text files would not read back), physical names with a line break
     (``$PhysicalNames`` is one name per line)."""
     for what, tags in (("cell tag", mesh.cell_tags), ("edge tag", mesh.edge_tags)):
-        if tags is not None and len(tags):
-            far = int(tags[np.argmax(np.abs(np.asarray(tags, dtype=np.int64)))])
-            if abs(far) > LARGEST_TAG:
-                raise ValueError(f"{path}: {what} {far} does not fit the 32-bit tags of Gmsh "
-                                 f"files (at most {LARGEST_TAG} in absolute value)")
+        if tags is not None:
+            check_tag_range(path, what, tags)
     for (dim, tag), name in (mesh.physical_names or {}).items():
         if "\n" in name or "\r" in name:
             raise ValueError(f"{path}: physical name {name!r} ({dim}, {tag}) contains a line "
