@@ -50,6 +50,16 @@ def min_worker_memory(chunk_size: int) -> int:
     return BASE_MEMORY + BYTES_PER_ROW * int(chunk_size)
 
 
+#: A Dask preload (the text of a script: nothing to import) run in every worker process
+#: of a local cluster: a terminal's Ctrl-C reaches the whole process group, and the client
+#: stops the run, removes its temporary store and closes the cluster; the workers ignore
+#: it instead of each printing its own traceback.
+WORKER_SETUP = """import signal, threading
+if threading.current_thread() is threading.main_thread():
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+"""
+
+
 def local_client(n_workers: int | None = None, memory_limit: str | float = "auto",
                  processes: bool = True, profile: bool = False, **cluster_kwargs: Any) -> Client:
     """A client of a new local cluster: ``n_workers`` (default: one per core) workers of
@@ -67,13 +77,18 @@ def local_client(n_workers: int | None = None, memory_limit: str | float = "auto
     # Dask's default 8787; without bokeh the HTTP server still serves health checks
     cluster_kwargs.setdefault("dashboard_address", ":0")
     if processes:  # worker processes ignore a terminal's Ctrl-C: the client handles it
-        cluster_kwargs.setdefault("preload", ["qdrefine.distributed.worker_setup"])
+        cluster_kwargs.setdefault("preload", [WORKER_SETUP])
     # a client given cluster arguments starts its own LocalCluster and closes it on close();
     # Ctrl-C or SIGTERM while it starts acts once it has started (and is closed again)
     held: list[int] = []
-    with signals_held(held):
-        client = Client(n_workers=n_workers or CPU_COUNT, threads_per_worker=1,
-                        processes=processes, memory_limit=memory_limit, **cluster_kwargs)
+    try:
+        with signals_held(held):
+            client = Client(n_workers=n_workers or CPU_COUNT, threads_per_worker=1,
+                            processes=processes, memory_limit=memory_limit, **cluster_kwargs)
+    except Exception:
+        if held:  # worker processes still importing Dask died of the Ctrl-C: it stops us too
+            signal.raise_signal(held[0])
+        raise
     if held:
         client.close()
         signal.raise_signal(held[0])

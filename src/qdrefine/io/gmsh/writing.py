@@ -148,10 +148,11 @@ def write_chunks(path: Path, source: Chunks, *, binary: bool = False,
     bytes as :func:`write` of the whole mesh (without data or names), in memory of one
     chunk at a time."""
     _check_version(path, version)
-    for kind, what in (("triangles", "cell tag"), ("edges", "edge tag")):
-        if (source.cell_tags if kind == "triangles" else source.edge_tags) is not None:
-            for _, _, tags in source.cells(kind):  # one pass over the tags, before writing
-                check_tag_range(path, what, tags)
+    for tags_of, n, what in ((source.cell_tags, source.n_triangles, "cell tag"),
+                             (source.edge_tags, source.n_edges, "edge tag")):
+        if tags_of is not None:  # one pass over the tags alone, before writing
+            for start in range(0, n, 1 << 20):
+                check_tag_range(path, what, tags_of(start, min(n, start + (1 << 20))))
     _write(path, source, binary, version, {}, [])
 
 
