@@ -171,11 +171,11 @@ def session() -> Iterator[None]:
         yield
 
 
-def _files(path: Path) -> set[Path]:
+def _files(path: str | Path) -> set[Path]:
     """The files that the mesh file ``path`` is made of, as identities: Triangle files by
     their common base name, an XDMF file with its HDF5 file (``name.h5``, shared by
     ``name.xdmf`` and ``name.xmf``)."""
-    text = str(path)
+    text = os.fspath(path)  # a str as given: Path("file://x") would read "file:/x"
     p = Path(text[len("file://"):] if text.startswith("file://") else text).resolve()
     if p.suffix.lower() in (".node", ".ele", ".poly"):
         return {p.with_suffix(".triangle")}
@@ -211,7 +211,7 @@ def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{out}: directory {out.parent} does not exist")
     for i in inputs:
-        shared = _files(Path(i)) & _files(out)
+        shared = _files(i) & _files(path)
         if shared:
             h5 = [p for p in shared if p.suffix == ".h5"]
             also = "" if out.resolve() in shared or not h5 else \
