@@ -181,8 +181,9 @@ def convergence(ctx) -> list[str]:
            "|---|---|---|---|---|"]
     rows = []
     for tol in (1e-6, 1e-8):
-        vals = {k: dg.region_area(k, tol=tol).value / dg.HALF_AREA for k in ("C1", "C2", "C3")}
-        err = max(dg.region_area(k, tol=tol).error for k in ("C1",)) / dg.HALF_AREA
+        found = {k: dg.region_area(k, tol=tol) for k in ("C1", "C2", "C3")}
+        vals = {k: a.value / dg.HALF_AREA for k, a in found.items()}
+        err = max(a.error for a in found.values()) / dg.HALF_AREA  # of all three regions
         rows.append((tol, vals, err))
     rows.append((res.tol, {k: f[k] for k in ("C1", "C2", "C3")},
                  max(res.errors[k] for k in ("C1", "C2", "C3")) / res.diagram_area))
