@@ -141,6 +141,12 @@ def aspect_ratios(mesh: Mesh | ArrayLike,
     return np.sqrt(3.0) * lmax2 / (2.0 * np.abs(cross))
 
 
+#: Similarity tolerances (degrees) that :func:`similarity_classes` takes: finer ones are
+#: below the rounding of the angles (about 1e-13 degrees), and would count rounding noise
+#: as shapes; coarser than 180 degrees means one class.
+TOLERANCE_RANGE = (1e-12, 180.0)
+
+
 def similarity_classes(
     mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None, *,
     tolerance: float = SIMILARITY_TOLERANCE,
@@ -157,8 +163,11 @@ def similarity_classes(
     shapes : (C, 3) float64
         The sorted angles (degrees) of the first triangle of each class.
     """
-    if not tolerance > 0:
-        raise ValueError(f"tolerance must be positive, got {tolerance!r}")
+    lo, hi = TOLERANCE_RANGE
+    if not lo <= tolerance <= hi:
+        raise ValueError(f"tolerance must be between {lo:g} and {hi:g} degrees, got "
+                         f"{tolerance!r} (the angles themselves are computed to about 1e-13 "
+                         "degrees)")
     a = np.sort(angles(mesh, triangles), axis=1)
     key = np.round(a[:, :2] / tolerance).astype(np.int64)
     _, first, labels = np.unique(key, axis=0, return_index=True, return_inverse=True)

@@ -129,8 +129,12 @@ def scheme_name(text: str) -> str:
 
 
 def scheme_names_list(text: str) -> list[str]:
-    """argparse type: one scheme name or several separated by commas."""
-    return [scheme_name(name) for name in text.split(",") if name]
+    """argparse type: one scheme name or several separated by commas (spaces around them
+    allowed); at least one."""
+    names = [scheme_name(name.strip()) for name in text.split(",") if name.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected scheme names, got {text!r}")
+    return names
 
 
 def non_negative(text: str) -> int:
@@ -141,6 +145,14 @@ def non_negative(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value}")
+    return value
+
+
+def positive(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    value = non_negative(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a number >= 1, got {value}")
     return value
 
 

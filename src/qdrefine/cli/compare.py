@@ -36,8 +36,8 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     with _common.session():
-        schemes = [name for names in args.schemes for name in names] if args.schemes \
-            else scheme_names()
+        schemes = list(dict.fromkeys(name for names in args.schemes for name in names)) \
+            if args.schemes else scheme_names()  # each once, in the order given
         if args.plot:
             _common.check_output(args.plot, (args.input,), kinds="picture")
         mesh = read(args.input)

@@ -29,15 +29,15 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                      "OUTDIR/report.txt (quality report).")
     parser.add_argument("outdir", metavar="OUTDIR", nargs="?", default="qdrefine-demo",
                         help="directory for the files (default ./qdrefine-demo; created)")
-    parser.add_argument("--levels", type=_common.non_negative, default=2,
-                        help="refinement levels (default 2)")
+    parser.add_argument("--levels", type=_common.non_negative, default=None,
+                        help="refinement levels (default 2; not with --afem)")
     parser.add_argument("--afem", action="store_true",
                         help="instead: adaptive finite elements on the Gmsh L-shape (Poisson, "
                              "scikit-fem P1, residual estimator, Doerfler 0.5) with 7t-qd, "
                              "7t-le, 4t-le and scikit-fem's own refinement; writes "
                              "OUTDIR/afem.png and OUTDIR/afem.json (needs qdrefine[fem])")
-    parser.add_argument("--cycles", type=_common.non_negative, default=10,
-                        help="cycles of the --afem loop (default 10)")
+    parser.add_argument("--cycles", type=_common.positive, default=None,
+                        help="cycles of the --afem loop (default 10; with --afem only)")
 
 
 def compiled(args: argparse.Namespace) -> tuple[str, ...]:
@@ -51,6 +51,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    if args.afem and args.levels is not None:
+        raise ValueError("--levels applies to the plate demo, not to --afem (see --cycles)")
+    if not args.afem and args.cycles is not None:
+        raise ValueError("--cycles applies to --afem only")
+    args.levels = 2 if args.levels is None else args.levels
+    args.cycles = 10 if args.cycles is None else args.cycles
     out = Path(args.outdir)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"{out}: exists and is not a directory")
@@ -145,9 +151,10 @@ def _afem(out: Path, cycles: int, say, quiet: bool) -> int:
     say("-" * len(header))
     for method, rows in results.items():
         added = [r["added"] / r["marked"] for r in rows if r["marked"]]
-        say(f"{method:11} {rows[-1]['dofs']:>7} {rows[-1]['error']:>9.3g} "
-            f"{afem.rate(rows):>6.2f} {min(r['min_angle_ratio'] for r in rows):>18.3f} "
-            f"{np.median(added):>14.1f}")
+        rate = f"{afem.rate(rows):>6.2f}" if len(rows) > 1 else f"{'n/a':>6}"  # a slope
+        spread = f"{np.median(added):>14.1f}" if added else f"{'n/a':>14}"
+        say(f"{method:11} {rows[-1]['dofs']:>7} {rows[-1]['error']:>9.3g} {rate} "
+            f"{min(r['min_angle_ratio'] for r in rows):>18.3f} {spread}")
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
     afem.plot_error(results, axes[0])
     afem.plot_min_angle(results, axes[1])
