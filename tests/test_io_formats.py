@@ -399,6 +399,7 @@ def test_entities_in_several_physical_groups(tmp_path):
         gmsh.option.setNumber("Mesh.MeshSizeMax", 0.3)
         gmsh.model.mesh.generate(2)
         plain = {}
+        gmsh.option.setNumber("Mesh.Binary", 0)  # options are global: another test's stay
         for version in (2.2, 4.1):
             gmsh.option.setNumber("Mesh.MshFileVersion", version)
             gmsh.write(str(tmp_path / f"curve-{version}.msh"))

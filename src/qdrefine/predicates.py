@@ -54,6 +54,7 @@ from numba.extending import intrinsic
 
 __all__ = [
     "COORDINATE_RANGE",
+    "below_range",
     "FILTER",
     "check_coordinates",
     "factor_forms",
@@ -93,6 +94,18 @@ def check_coordinates(points: np.ndarray, what: str = "point") -> None:
             f"each coordinate must be 0 or between {lo:g} and {hi:g} in magnitude "
             "(exact predicates; rescale the mesh or round tiny values to 0)"
         )
+
+
+def below_range(index: int, point, smallest: float) -> ValueError:
+    """The error of a refinement whose new point ``index`` at ``point`` has a nonzero
+    coordinate below :data:`COORDINATE_RANGE` (the input's smallest nonzero coordinate
+    magnitude ``smallest`` was close to the range's lower end)."""
+    lo, hi = COORDINATE_RANGE
+    return ValueError(f"refining this mesh makes new point {index} at "
+                      f"{tuple(float(x) for x in point)}, below the supported range (nonzero "
+                      f"coordinates of magnitude {lo:g} to {hi:g}, where the predicates are "
+                      f"exact); the mesh's smallest nonzero coordinate is {smallest:g}: "
+                      "scale the mesh up")
 
 
 def new_scratch() -> np.ndarray:

@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 from .adaptive import refine_marked
 from .arguments import as_count
 from .mesh import Mesh
-from .predicates import COORDINATE_RANGE
+from .predicates import COORDINATE_RANGE, below_range
 from .schemes import Scheme, get_scheme
 from .uniform import RefusedTriangle, refine_uniform
 
@@ -122,12 +122,7 @@ def _in_range(mesh: Mesh, out: Mesh, levels: int) -> Mesh:
         bad = ((new < lo) & (new != 0)).any(axis=1)
         if bad.any():
             i = mesh.n_points + int(np.flatnonzero(bad)[0])
-            raise ValueError(f"refining this mesh makes new point {i} at "
-                             f"{tuple(out.points[i].tolist())}, below the supported range "
-                             f"(nonzero coordinates of magnitude {lo:g} to "
-                             f"{COORDINATE_RANGE[1]:g}, where the predicates are exact); the "
-                             f"mesh's smallest nonzero coordinate is {smallest:g}: scale the "
-                             "mesh up")
+            raise below_range(i, out.points[i], smallest)
         bound = min(smallest, float(np.min(new, where=new > 0, initial=np.inf)))
     object.__setattr__(out, "_smallest", bound)
     return out

@@ -25,7 +25,7 @@ from ..arguments import as_count
 from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, check_memory, memory_needed
 from ..mesh import Mesh, index_dtype
-from ..predicates import COORDINATE_RANGE, check_coordinates, factor_forms
+from ..predicates import COORDINATE_RANGE, below_range, check_coordinates, factor_forms
 from ..schemes import Scheme, get_scheme
 from ..uniform import RefusedTriangle, check_rounding
 from . import kernels as k
@@ -138,6 +138,8 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
         except ValueError as exc:
             raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
         exact.append(n_hard)
+    if levels:
+        _check_new_points(pts, n, points)
     arrays = (pts, tri, tags, tagged, etags)
     if like_cupy:
         import cupy
@@ -361,6 +363,22 @@ def _check_points(points) -> None:
             check_coordinates(points[i:i + 1].copy_to_host())
         except ValueError as exc:
             raise ValueError(str(exc).replace("point 0 ", f"point {i} ", 1)) from None
+
+
+def _check_new_points(points, n: int, given) -> None:
+    """The new points (rows ``n ..`` of ``points``) in the range of exact predicates, as
+    :func:`qdrefine.refine` checks them on the CPU (same message): a device pass."""
+    new = points[n:]
+    if new.shape[0] == 0:
+        return
+    first_bad = cuda.to_device(np.array([new.shape[0]], dtype=np.int64))
+    lo, hi = COORDINATE_RANGE
+    k.check_points[blocks(new.shape[0]), THREADS](new, lo, hi, first_bad)
+    i = int(first_bad.copy_to_host()[0])
+    if i < new.shape[0]:  # rare: the input's smallest coordinate for the message, on the host
+        a = np.abs(_host(_device(given, "points", (np.float64,), 2)))
+        smallest = float(np.min(a, where=a > 0, initial=np.inf))
+        raise below_range(n + i, new[i:i + 1].copy_to_host()[0], smallest)
 
 
 def _check_indices(index, n: int, name: str) -> None:
