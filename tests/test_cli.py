@@ -216,6 +216,19 @@ def test_bad_input_through_the_entry_point(tmp_path):
     (["compare", "IN.msh", "--schemes", "7t-qd", "zz"], "unknown scheme 'zz'"),
     (["compare", "IN.msh", "--schemes", "7t-qd,zz"], "unknown scheme 'zz'"),
     (["quality", "IN.msh", "--tolerance", "0"], "expected a number > 0"),
+    # found by a review of the commands (2026-11-27): each was a traceback, two lines, or
+    # silently accepted
+    (["quality", "IN.msh", "--tolerance", "1e-20"], "tolerance must be between 1e-12 and 180"),
+    (["compare", "IN.msh", "--schemes", ","], "expected scheme names, got ','"),
+    (["info", "IN.msh", "--bogus"], "unrecognized arguments: --bogus (see 'qdrefine info "
+                                    "--help')"),
+    (["frobnicate"], "invalid choice: 'frobnicate'"),
+    (["plot", "IN.msh", "p.png", "--dpi", "0"], "expected 10 to 2000, got 0"),
+    (["plot", "IN.msh", "p.png", "--color", "tag"], "IN.msh: no cell tags to colour by"),
+    (["demo", "--afem", "--levels", "2"], "--levels applies to the plate demo"),
+    (["demo", "--cycles", "2"], "--cycles applies to --afem only"),
+    (["demo", "--afem", "--cycles", "0"], "expected a number >= 1"),
+    (["paper", "IN.msh"], "IN.msh: exists and is not a directory"),
 ])
 def test_bad_arguments(tmp_path, monkeypatch, capsys, argv, message):
     monkeypatch.chdir(tmp_path)
@@ -299,3 +312,14 @@ def test_first_local_refinement_says_it_compiles_too(tmp_path, monkeypatch, caps
         for module in asked:  # each names a module with cached kernels
             source = importlib.import_module(f"qdrefine.{module}")
             assert "cache=True" in Path(source.__file__).read_text(), module
+
+
+def test_scheme_lists_take_spaces_and_count_each_scheme_once(tmp_path, capsys):
+    from qdrefine.cli._common import scheme_names_list
+
+    assert scheme_names_list("7t-qd, 4T-LE") == ["7t-qd", "4t-le"]
+    qdrefine.write(tmp_path / "in.msh", examples.square(2))
+    assert main(["compare", str(tmp_path / "in.msh"), "--levels", "1", "--schemes",
+                 "7t-qd, 4t-le", "7t-qd", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert [r["scheme"] for r in report["rows"] if r["level"] == 0] == ["7t-qd", "4t-le"]

@@ -40,10 +40,12 @@ def _parser() -> argparse.ArgumentParser:
         prog="qdrefine",
         description="Refine 2D triangle meshes with seven-triangle partitions (7T-QD).",
     )
+    _common.setup(parser, quiet=False)  # one-line errors here too (an unknown command)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         module = importlib.import_module(f"{__name__}.{name.replace('-', '_')}")
         cmd = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        cmd.set_defaults(parser=cmd)
         module.add_args(cmd)
         cmd.set_defaults(handler=module.run,
                          compiled=getattr(module, "compiled",
@@ -54,7 +56,11 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = _parser()
-    args = parser.parse_args(_joined_negative_values(sys.argv[1:] if argv is None else argv))
+    args, extra = parser.parse_known_args(
+        _joined_negative_values(sys.argv[1:] if argv is None else argv))
+    if extra:  # said by the command's parser: one line, with its --help
+        (getattr(args, "parser", None) or parser).error(
+            f"unrecognized arguments: {' '.join(extra)}")
     if getattr(args, "handler", None) is None:
         parser.print_help()
         return 2

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import argparse
 
+from . import _common
+
 HELP = ("recompute the paper's figures, Table 1, claims, certified extrema and the iterated "
         "refinement study into OUTDIR (report.md, PNG, SVG)")
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:
+    _common.setup(parser)
     parser.add_argument("outdir", help="output directory (created if missing)")
     parser.add_argument("--no-figures", action="store_true", help="write report.md only")
 
@@ -17,5 +20,7 @@ def run(args: argparse.Namespace) -> int:
     from ..paper import write_all
 
     path = write_all(args.outdir, figures=not args.no_figures)
-    print(f"wrote {path} and the figures in {path.parent}")
+    if not args.quiet:
+        print(f"wrote {path}" if args.no_figures else
+              f"wrote {path} and the figures in {path.parent}")
     return 0

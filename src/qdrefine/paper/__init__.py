@@ -16,12 +16,14 @@ without them the report says what could not be checked.
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
 import numpy as np
 
 from .. import diagram as dg
+from ..io import atomic_path
 from .claims import PAPER_CLAIMS, PAPER_TABLE1
 from .cost import decision_costs
 from .figures import save_all
@@ -78,14 +80,17 @@ def write_all(outdir: str | Path, figures: bool = True) -> Path:
     """Recompute everything and write the figures and ``report.md`` into ``outdir``."""
     start = time.time()
     out = Path(outdir)
+    if out.exists() and not out.is_dir():  # before a minute of work, not after it
+        raise NotADirectoryError(f"{out}: exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise PermissionError(f"{out}: cannot write into this directory")
     ctx = compute_context()
     ctx["figures"] = save_all(out, ctx) if figures else []
     ctx["seconds"] = time.time() - start
     path = out / "report.md"
-    tmp = out / ".report.md.tmp"
-    tmp.write_text(build_report(ctx))
-    tmp.replace(path)
+    with atomic_path(path) as tmp:  # no partial report.md, and the error names the file
+        Path(tmp).write_text(build_report(ctx), encoding="utf-8")
     return path
 
 

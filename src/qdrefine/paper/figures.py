@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import diagram as dg
+from ..io import atomic_path
 from ..partition import partition
 from ..stencil import SEVEN
 
@@ -96,7 +97,8 @@ def _region_image(ax, mask_fn, extent, n=700, cmap="Greys", **kw):
 
 def _save_one(fig, outdir: Path, name: str, written: list[str]):
     for ext in ("png", "svg"):
-        fig.savefig(outdir / f"{name}.{ext}", dpi=130, bbox_inches="tight")
+        with atomic_path(outdir / f"{name}.{ext}") as tmp:  # whole pictures or none
+            fig.savefig(tmp, format=ext, dpi=130, bbox_inches="tight")
         written.append(f"{name}.{ext}")
     fig.clf()
     _plt().close(fig)
