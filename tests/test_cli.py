@@ -229,6 +229,9 @@ def test_bad_input_through_the_entry_point(tmp_path):
     (["demo", "--cycles", "2"], "--cycles applies to --afem only"),
     (["demo", "--afem", "--cycles", "0"], "expected a number >= 1"),
     (["paper", "IN.msh"], "IN.msh: exists and is not a directory"),
+    (["compare", "IN.msh", "--levels", "30"], "comparing the schemes (8 triangles, 30 levels) "
+                                              "needs about"),  # was killed by the OOM killer
+    (["demo", "--levels", "9"], "the demo (384 triangles, 9 levels) needs about"),
 ])
 def test_bad_arguments(tmp_path, monkeypatch, capsys, argv, message):
     monkeypatch.chdir(tmp_path)

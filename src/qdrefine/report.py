@@ -20,9 +20,10 @@ from typing import Any
 import numpy as np
 
 from . import quality as q
+from .memory import check_needed, memory_needed
 from .mesh import Mesh
 from .refine import refine
-from .schemes import scheme_names
+from .schemes import get_scheme, scheme_names
 from .topology import boundary_edges, conformity, euler_characteristic
 
 __all__ = ["info", "quality", "compare", "format_info", "format_quality", "format_compare"]
@@ -115,6 +116,33 @@ def quality(mesh: Mesh, *, bin_width: float = 2.5,
     }
 
 
+#: Bytes per triangle that measuring a mesh adds at its peak: angles and their sort,
+#: similarity keys and ``np.unique``'s work, conformity's edge tables (an estimate from
+#: above, with :func:`qdrefine.memory.memory_needed` for the refinement itself).
+MEASURE_BYTES = 200
+#: Bytes per triangle of a refined mesh kept (points, ``(M, 3)`` ids, tags).
+KEPT_BYTES = 40
+
+
+def check_study_memory(mesh: Mesh, schemes: Sequence[str], levels: int, what: str,
+                       keep_all: bool = False) -> None:
+    """``MemoryError`` before any work when refining ``mesh`` ``levels`` times with each of
+    ``schemes`` and measuring every level would need more memory than is available
+    (``keep_all``: every scheme's finest mesh is kept to the end); ``what`` names the study
+    in the message."""
+    if levels <= 0:
+        return
+    worst = kept = 0
+    for name in schemes:
+        sch = get_scheme(name)
+        final = mesh.n_triangles * sch.n_children ** min(levels, 40)
+        worst = max(worst, memory_needed(mesh.n_points, mesh.n_triangles, sch, levels,
+                                         mesh.cell_tags is not None) + MEASURE_BYTES * final)
+        kept += KEPT_BYTES * final if keep_all else 0
+    check_needed(worst + kept, f"{what} ({mesh.n_triangles} triangles, {levels} level"
+                               f"{'s' if levels != 1 else ''})")
+
+
 def compare(mesh: Mesh, schemes: Sequence[str] | None = None, levels: int = 2, *,
             tolerance: float = q.SIMILARITY_TOLERANCE,
             step: Callable[[str, int], None] | None = None) -> list[dict[str, Any]]:
@@ -127,6 +155,7 @@ def compare(mesh: Mesh, schemes: Sequence[str] | None = None, levels: int = 2, *
     names = list(scheme_names() if schemes is None else schemes)
     if levels < 0:
         raise ValueError(f"levels must be >= 0, got {levels}")
+    check_study_memory(mesh, names, levels, "comparing the schemes")
     rows = []
     for name in names:
         fine = mesh

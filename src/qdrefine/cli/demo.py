@@ -62,6 +62,9 @@ def _run(args: argparse.Namespace) -> int:
         raise NotADirectoryError(f"{out}: exists and is not a directory")
     if args.afem:  # needs qdrefine[fem]: say so before OUTDIR is made
         import skfem  # noqa: F401
+    else:  # and too little memory too
+        report.check_study_memory(examples.plate_with_hole(), scheme_names(), args.levels,
+                                  "the demo", keep_all=True)
     out.mkdir(parents=True, exist_ok=True)
     say = (lambda *a: None) if args.quiet else print
     if args.afem:
