@@ -25,10 +25,11 @@ from ..arguments import as_count
 from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, check_memory, memory_needed
 from ..mesh import Mesh, index_dtype
-from ..predicates import COORDINATE_RANGE, below_range, check_coordinates, factor_forms
+from ..predicates import factor_forms
 from ..schemes import Scheme, get_scheme
 from ..uniform import RefusedTriangle, check_rounding
 from . import kernels as k
+from .checks import check_indices, check_new_points, check_points
 from .numbering import THREADS, blocks, sort_edges
 
 __all__ = ["DeviceMesh", "pass_times", "refine_device", "refine_mesh", "require_gpu"]
@@ -106,7 +107,7 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
     pts = _device(points, "points", (np.float64,), 2)
     tri = _device(triangles, "triangles", (np.int32, np.int64), 3)
     n, m = pts.shape[0], tri.shape[0]
-    _check_indices(tri, n, "triangles")
+    check_indices(tri, n, "triangles")
     tags = None if cell_tags is None else _device(cell_tags, "cell_tags", (np.int64,), None)
     if tags is not None and tags.shape[0] != m:
         raise ValueError(f"cell_tags must have {m} entries, got {tags.shape[0]}")
@@ -119,10 +120,10 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
         if etags.shape[0] != tagged.shape[0]:
             raise ValueError(f"edge_tags must have {tagged.shape[0]} entries, got "
                              f"{etags.shape[0]}")
-        _check_indices(tagged, n, "edges")
+        check_indices(tagged, n, "edges")
     check_device_memory(n, m, sch, levels, tags is not None)
     if levels:
-        _check_points(pts)
+        check_points(pts)
     tables = _Tables(sch)
     exact = []
     first = tri
@@ -139,7 +140,7 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
             raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
         exact.append(n_hard)
     if levels:
-        _check_new_points(pts, n, points)
+        check_new_points(pts, n, lambda: _smallest(points))
     arrays = (pts, tri, tags, tagged, etags)
     if like_cupy:
         import cupy
@@ -348,70 +349,8 @@ def _refuse_misoriented(tri, rows: NDArray, labels: NDArray) -> None:
                      "counter-clockwise with positive area")
 
 
-def _check_points(points) -> None:
-    """:func:`qdrefine.predicates.check_coordinates` on the device: ``ValueError`` naming
-    the first bad point."""
-    n = points.shape[0]
-    if n == 0:
-        return
-    first_bad = cuda.to_device(np.array([n], dtype=np.int64))
-    lo, hi = COORDINATE_RANGE
-    k.check_points[blocks(n), THREADS](points, lo, hi, first_bad)
-    i = int(first_bad.copy_to_host()[0])
-    if i < n:
-        try:
-            check_coordinates(points[i:i + 1].copy_to_host())
-        except ValueError as exc:
-            raise ValueError(str(exc).replace("point 0 ", f"point {i} ", 1)) from None
-
-
-def _check_new_points(points, n: int, given) -> None:
-    """The new points (rows ``n ..`` of ``points``) in the range of exact predicates, as
-    :func:`qdrefine.refine` checks them on the CPU (same message): a device pass."""
-    new = points[n:]
-    if new.shape[0] == 0:
-        return
-    first_bad = cuda.to_device(np.array([new.shape[0]], dtype=np.int64))
-    lo, hi = COORDINATE_RANGE
-    k.check_points[blocks(new.shape[0]), THREADS](new, lo, hi, first_bad)
-    i = int(first_bad.copy_to_host()[0])
-    if i < new.shape[0]:  # rare: the input's smallest coordinate for the message, on the host
-        a = np.abs(_host(_device(given, "points", (np.float64,), 2)))
-        smallest = float(np.min(a, where=a > 0, initial=np.inf))
-        raise below_range(n + i, new[i:i + 1].copy_to_host()[0], smallest)
-
-
-def _check_indices(index, n: int, name: str) -> None:
-    """``ValueError`` when a device index array has an entry outside ``[0, n)``."""
-    if index.shape[0] == 0:
-        return
-    first_bad = cuda.to_device(np.array([index.shape[0]], dtype=np.int64))
-    _first_out_of_range[blocks(index.shape[0]), THREADS](index, n, first_bad)
-    if int(first_bad.copy_to_host()[0]) == index.shape[0]:
-        return
-    # rare: the range for the message (atomics on one address serialise: only now)
-    bounds = cuda.to_device(np.array([np.iinfo(np.int64).max, -1], dtype=np.int64))
-    _index_range[blocks(index.shape[0]), THREADS](index, bounds)
-    lo, hi = (int(b) for b in bounds.copy_to_host())
-    raise ValueError(f"{name}: vertex indices must be in [0, {n}), got [{lo}, {hi}]")
-
-
-@cuda.jit
-def _first_out_of_range(index, n, first_bad):
-    """``first_bad[0]``: the least row of ``index`` with an entry outside ``[0, n)``
-    (unchanged when there is none; an atomic only where an entry is bad)."""
-    r = cuda.grid(1)
-    if r < index.shape[0]:
-        for i in range(index.shape[1]):
-            v = index[r, i]
-            if v < 0 or v >= n:
-                cuda.atomic.min(first_bad, 0, r)
-
-
-@cuda.jit
-def _index_range(index, bounds):
-    r = cuda.grid(1)
-    if r < index.shape[0]:
-        for i in range(index.shape[1]):
-            cuda.atomic.min(bounds, 0, index[r, i])
-            cuda.atomic.max(bounds, 1, index[r, i])
+def _smallest(points) -> float:
+    """The smallest nonzero coordinate magnitude of the input ``points`` (host or device
+    array), for a message."""
+    a = np.abs(_host(_device(points, "points", (np.float64,), 2)))
+    return float(np.min(a, where=a > 0, initial=np.inf))

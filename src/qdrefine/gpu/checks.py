@@ -1,0 +1,85 @@
+"""Device-side checks of refinement's inputs and outputs: coordinates in the range of exact
+predicates (:data:`qdrefine.predicates.COORDINATE_RANGE`), vertex indices in range; each a
+kernel pass that finds the first bad row, the message built on the host from that row
+alone."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numba import cuda
+
+from ..predicates import COORDINATE_RANGE, below_range, check_coordinates
+from . import kernels as k
+from .numbering import THREADS, blocks
+
+__all__ = ["check_indices", "check_new_points", "check_points"]
+
+
+def check_points(points) -> None:
+    """:func:`qdrefine.predicates.check_coordinates` on the device: ``ValueError`` naming
+    the first bad point."""
+    n = points.shape[0]
+    if n == 0:
+        return
+    first_bad = cuda.to_device(np.array([n], dtype=np.int64))
+    lo, hi = COORDINATE_RANGE
+    k.check_points[blocks(n), THREADS](points, lo, hi, first_bad)
+    i = int(first_bad.copy_to_host()[0])
+    if i < n:
+        try:
+            check_coordinates(points[i:i + 1].copy_to_host())
+        except ValueError as exc:
+            raise ValueError(str(exc).replace("point 0 ", f"point {i} ", 1)) from None
+
+
+def check_new_points(points, n: int, smallest: Callable[[], float]) -> None:
+    """The new points (rows ``n ..`` of ``points``) in the range of exact predicates, as
+    :func:`qdrefine.refine` checks them on the CPU (same message): a device pass;
+    ``smallest()``: the input's smallest nonzero coordinate, for the message."""
+    new = points[n:]
+    if new.shape[0] == 0:
+        return
+    first_bad = cuda.to_device(np.array([new.shape[0]], dtype=np.int64))
+    lo, hi = COORDINATE_RANGE
+    k.check_points[blocks(new.shape[0]), THREADS](new, lo, hi, first_bad)
+    i = int(first_bad.copy_to_host()[0])
+    if i < new.shape[0]:
+        raise below_range(n + i, new[i:i + 1].copy_to_host()[0], smallest())
+
+
+def check_indices(index, n: int, name: str) -> None:
+    """``ValueError`` when a device index array has an entry outside ``[0, n)``."""
+    if index.shape[0] == 0:
+        return
+    first_bad = cuda.to_device(np.array([index.shape[0]], dtype=np.int64))
+    _first_out_of_range[blocks(index.shape[0]), THREADS](index, n, first_bad)
+    if int(first_bad.copy_to_host()[0]) == index.shape[0]:
+        return
+    # rare: the range for the message (atomics on one address serialise: only now)
+    bounds = cuda.to_device(np.array([np.iinfo(np.int64).max, -1], dtype=np.int64))
+    _index_range[blocks(index.shape[0]), THREADS](index, bounds)
+    lo, hi = (int(b) for b in bounds.copy_to_host())
+    raise ValueError(f"{name}: vertex indices must be in [0, {n}), got [{lo}, {hi}]")
+
+
+@cuda.jit
+def _first_out_of_range(index, n, first_bad):
+    """``first_bad[0]``: the least row of ``index`` with an entry outside ``[0, n)``
+    (unchanged when there is none; an atomic only where an entry is bad)."""
+    r = cuda.grid(1)
+    if r < index.shape[0]:
+        for i in range(index.shape[1]):
+            v = index[r, i]
+            if v < 0 or v >= n:
+                cuda.atomic.min(first_bad, 0, r)
+
+
+@cuda.jit
+def _index_range(index, bounds):
+    r = cuda.grid(1)
+    if r < index.shape[0]:
+        for i in range(index.shape[1]):
+            cuda.atomic.min(bounds, 0, index[r, i])
+            cuda.atomic.max(bounds, 1, index[r, i])
