@@ -111,19 +111,20 @@ def _in_range(mesh: Mesh, out: Mesh, levels: int) -> Mesh:
     that are 0 or at least ``m`` in magnitude; every sum of them is a multiple of
     ``ulp(m) >= m 2^-53``, so a nonzero new coordinate is at least ``m 2^-55``. Only
     meshes whose smallest nonzero coordinate ``m`` is within ``2^(55 levels)`` of the
-    range's lower end (about 1e-84 for one level) can leave it, and only then are the new
-    points checked. ``m`` is kept on the mesh (a pass over its points, 4 ms per million),
+    range's lower end (about 1e-84 for one level) can leave it, and only then are the
+    output's points checked (all of them: a coarsened transition's centroid is removed and
+    the later points move up). ``m`` is kept on the mesh (a pass over its points, 4 ms per million),
     and the bound ``m 2^(-55 levels)`` on ``out``, for the next call."""
     lo = COORDINATE_RANGE[0]
     smallest = _smallest_coordinate(mesh)
     bound = smallest * 2.0 ** (-55 * min(levels, 20))
-    if out.n_points > mesh.n_points and bound < lo:
-        new = np.abs(out.points[mesh.n_points:])
-        bad = ((new < lo) & (new != 0)).any(axis=1)
+    if out.n_points and bound < lo:  # every point: coarsening may have renumbered some
+        a = np.abs(out.points)
+        bad = ((a < lo) & (a != 0)).any(axis=1)
         if bad.any():
-            i = mesh.n_points + int(np.flatnonzero(bad)[0])
+            i = int(np.flatnonzero(bad)[0])
             raise below_range(i, out.points[i], smallest)
-        bound = min(smallest, float(np.min(new, where=new > 0, initial=np.inf)))
+        bound = float(np.min(a, where=a > 0, initial=np.inf))
     object.__setattr__(out, "_smallest", bound)
     return out
 
