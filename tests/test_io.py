@@ -218,6 +218,10 @@ def test_bad_files_and_names(tmp_path):
         qdrefine.read(tmp_path / "a.xyz")
     with pytest.raises(ValueError, match="unknown file format"):
         qdrefine.write(tmp_path / "a.xyz", examples.square(1))
+    with pytest.raises(ValueError, match=r"a\.zarr: a Zarr mesh store, not a mesh file: "
+                                         r"qdrefine\.store reads it \(command line: 'qdrefine "
+                                         r"convert STORE FILE'"):
+        qdrefine.read(tmp_path / "a.zarr")  # info, plot, ... on a store (review)
     (tmp_path / "junk.vtu").write_bytes(os.urandom(300))
     with pytest.raises(ValueError, match="junk.vtu: not a readable VTK XML"):
         qdrefine.read(tmp_path / "junk.vtu")

@@ -127,6 +127,10 @@ def _format_of(path: Path) -> Format:
     if ext not in FORMATS:
         known = ", ".join(FORMATS)
         what = f"extension '{path.suffix}'" if path.suffix else "no extension"
+        if ext == ".zarr":  # a mesh store: another layer (qdrefine.store)
+            raise ValueError(f"{path}: a Zarr mesh store, not a mesh file: qdrefine.store "
+                             "reads it (command line: 'qdrefine convert STORE FILE' makes a "
+                             "file of it; 'refine --dask' refines it)")
         raise ValueError(f"{path}: unknown file format ({what}); known extensions: {known}")
     return FORMATS[ext]
 
