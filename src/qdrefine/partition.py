@@ -63,9 +63,10 @@ def partition_many(vertices: ArrayLike, scheme: str | Scheme = "7t-qd", *, stric
         Local indices, as for :func:`partition`.
     """
     sch = get_scheme(scheme)
-    if np.asarray(vertices).dtype.kind == "c":  # the cast would drop the imaginary parts
-        raise ValueError(f"vertices must be real numbers, got dtype {np.asarray(vertices).dtype}")
-    v = np.asarray(vertices, dtype=np.float64)
+    given = np.asarray(vertices)
+    if given.dtype.kind == "c":  # the cast would drop the imaginary parts
+        raise ValueError(f"vertices must be real numbers, got dtype {given.dtype}")
+    v = np.asarray(given, dtype=np.float64)
     if v.ndim != 3 or v.shape[1:] != (3, 2):
         raise ValueError(f"vertices must have shape (K, 3, 2), got {v.shape}")
     check_coordinates(v.reshape(-1, 2), "vertex")

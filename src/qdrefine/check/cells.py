@@ -22,11 +22,11 @@ __all__ = ["points", "triangles", "in_range", "coordinates", "orientation", "cel
 
 def points(found: Findings, points: ArrayLike) -> NDArray | None:
     try:
-        if np.asarray(points).dtype.kind == "c":  # the cast would drop the imaginary parts
-            found.add("points", f"points must be real numbers, got dtype "
-                                f"{np.asarray(points).dtype}")
+        given = np.asarray(points)
+        if given.dtype.kind == "c":  # the cast would drop the imaginary parts
+            found.add("points", f"points must be real numbers, got dtype {given.dtype}")
             return None
-        p = np.array(points, dtype=np.float64, copy=True)
+        p = np.array(given, dtype=np.float64, copy=True)
     except (TypeError, ValueError) as exc:
         found.add("points", f"points must be an (N, 2) array of numbers ({exc})")
         return None

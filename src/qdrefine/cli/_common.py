@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..io import FORMATS, GMSH_VERSIONS, atomic_path, write
 from ..schemes import get_scheme
+from ..store.locations import location
 
 if TYPE_CHECKING:
     from ..adaptive import HistoryMismatch
@@ -187,8 +188,7 @@ def _files(path: str | Path) -> set[Path]:
     """The files that the mesh file ``path`` is made of, as identities: Triangle files by
     their common base name, an XDMF file with its HDF5 file (``name.h5``, shared by
     ``name.xdmf`` and ``name.xmf``)."""
-    text = os.fspath(path)  # a str as given: Path("file://x") would read "file:/x"
-    p = Path(text[len("file://"):] if text.startswith("file://") else text).resolve()
+    p = Path(location(path)).resolve()  # file:// URLs as their paths
     if p.suffix.lower() in (".node", ".ele", ".poly"):
         return {p.with_suffix(".triangle")}
     if p.suffix.lower() in (".xdmf", ".xmf"):

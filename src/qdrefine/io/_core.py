@@ -209,6 +209,15 @@ def split_data(raw: RawMesh, point_data: Mapping[str, NDArray],
             raw.cell_data[name] = value
 
 
+def writable_data(value) -> NDArray:
+    """Data as the binary writers take it: booleans as ``uint8``, 16-bit floats as
+    ``float32`` (which holds each of their values exactly; VTK has no 16-bit floats)."""
+    a = np.asarray(value)
+    if a.dtype == bool:
+        return a.astype(np.uint8)
+    return a.astype(np.float32) if a.dtype.kind == "f" and a.dtype.itemsize == 2 else a
+
+
 def mesh_data(mesh) -> tuple[dict[str, NDArray], dict[str, NDArray]]:
     """Point data and cell data of ``mesh`` to write, the history (transitions, origins)
     as cell data."""

@@ -18,7 +18,15 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ._core import RawMesh, atomic_path, check_regular, from_blocks, mesh_data, split_data
+from ._core import (
+    RawMesh,
+    atomic_path,
+    check_regular,
+    from_blocks,
+    mesh_data,
+    split_data,
+    writable_data,
+)
 
 __all__ = ["read_with_meshio", "write_with_meshio", "meshio_mesh", "raw_from_meshio", "TAG_KEYS"]
 
@@ -240,9 +248,9 @@ def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
     point_data: dict[str, NDArray] = {}
     if data:
         point_data, tri_data = mesh_data(mesh)
-        point_data = {k: _plain(v) for k, v in point_data.items()}
+        point_data = {k: writable_data(v) for k, v in point_data.items()}
         for name, value in tri_data.items():
-            value = _plain(value)
+            value = writable_data(value)
             pad = [np.zeros((k, *value.shape[1:]), value.dtype)] if k else []
             cell_data[name] = [*pad, value]
     field_data = {name: np.array([tag, dim]) for (dim, tag), name in
@@ -254,12 +262,3 @@ def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
 def raw_from_meshio(m, path: Path) -> RawMesh:
     """What a ``meshio.Mesh`` holds as a :class:`RawMesh` (``path`` names it in messages)."""
     return _raw(path, _arrays(m), m.field_data)
-
-
-def _plain(value) -> NDArray:
-    """Data as meshio's writers take it: booleans as ``uint8``, 16-bit floats as
-    ``float32`` (which holds each of their values exactly; VTK has no 16-bit floats)."""
-    a = np.asarray(value)
-    if a.dtype == bool:
-        return a.astype(np.uint8)
-    return a.astype(np.float32) if a.dtype.kind == "f" and a.dtype.itemsize == 2 else a

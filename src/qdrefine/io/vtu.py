@@ -23,7 +23,15 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ._core import RawMesh, atomic_path, from_blocks, mesh_data, read_bytes, split_data
+from ._core import (
+    RawMesh,
+    atomic_path,
+    from_blocks,
+    mesh_data,
+    read_bytes,
+    split_data,
+    writable_data,
+)
 
 __all__ = ["read", "write"]
 
@@ -256,13 +264,9 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False) -> N
     offset = [0]
 
     def item(name: str, a: NDArray) -> str:
-        a = np.asarray(a)
-        if a.dtype == bool:
-            a = a.astype(np.uint8)
+        a = writable_data(a)
         if a.dtype.kind not in "iuf":
             raise ValueError(f"{path}: data {name!r} of dtype {a.dtype} cannot be written")
-        if a.dtype.kind == "f" and a.dtype.itemsize == 2:
-            a = a.astype(np.float32)  # VTK has no 16-bit floats; float32 holds each exactly
         a = np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<"))
         comps = f' NumberOfComponents="{int(np.prod(a.shape[1:]))}"' if a.ndim > 1 else ""
         body = _encode(a, compress)

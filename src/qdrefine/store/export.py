@@ -64,21 +64,21 @@ def create(path: PathLike, mesh: Mesh, chunk_size: int = DEFAULT_CHUNK_SIZE,
         raise TypeError(f"create() needs a Mesh, got {type(mesh).__name__}")
     chunk_size = chunk_size_of(chunk_size)
     url = location(path)
-    dropped = [what for what, held in (
-        ("point data", mesh.point_data), ("cell data", mesh.cell_data),
-        ("physical names", mesh.physical_names),
-        ("the refinement history", mesh.transitions is not None or mesh.origins is not None))
-        if held]
-    if dropped:  # as qdrefine.write warns for a format that cannot hold them
-        warnings.warn(f"{url}: mesh stores hold points, triangles, cell tags and tagged edges; "
-                      f"{', '.join(dropped)} {'is' if len(dropped) == 1 else 'are'} dropped",
-                      stacklevel=2)
     arrays = {name: getattr(mesh, name) for name in ARRAYS}
     for name in ("cell_tags", "edge_tags"):
         if arrays[name] is not None and (np.asarray(arrays[name]) == FILL[name]).any():
             raise ValueError(f"{url}: {name} holds {FILL[name]}, the store's mark of chunks "
                              "that were never written; it cannot be stored")
-    with writing(url) as tmp:
+    dropped = [what for what, held in (
+        ("point data", mesh.point_data), ("cell data", mesh.cell_data),
+        ("physical names", mesh.physical_names),
+        ("the refinement history", mesh.transitions is not None or mesh.origins is not None))
+        if held]
+    with writing(url) as tmp:  # the target checked first: no warning before a refusal
+        if dropped:  # as qdrefine.write warns for a format that cannot hold them
+            warnings.warn(f"{url}: mesh stores hold points, triangles, cell tags and tagged "
+                          f"edges; {', '.join(dropped)} {'is' if len(dropped) == 1 else 'are'} "
+                          "dropped", stacklevel=2)
         group = new_group(tmp, {k: spec_of(v) for k, v in arrays.items()}, chunk_size,
                           metadata)
         for name, value in (arrays | node_coordinates(mesh.points)).items():
