@@ -145,6 +145,9 @@ def test_uniform_refinement_is_unchanged(tmp_path, run):
     (["--mark-file", "{tmp}/missing.txt"], 1, "missing.txt: no such file"),
     (["--mark-file", "{tmp}/short.npy"], 1, "short.npy: a boolean mask needs shape"),
     (["--mark-file", "{tmp}/neg.npy"], 1, "neg.npy, entry 1: triangle id -2 is outside"),
+    # an empty list wrote the input unchanged (review, 2026-11-27)
+    (["--mark-file", "{tmp}/empty.txt"], 1, "empty.txt: lists no triangle"),
+    (["--mark-file", "{tmp}/none.npy"], 1, "none.npy: lists no triangle"),
     (["--mark-tag", "1", "--mark-box", "0,0,1,1"], 2, "not allowed with argument"),
     (["--cycles", "2"], 1, "--cycles needs a mark"),
     (["--mark-tag", "1", "--levels", "2"], 1, "with a mark use --cycles"),
@@ -155,6 +158,8 @@ def test_bad_marks_give_one_line_and_no_output(tmp_path, extra, code, message, r
     (tmp_path / "word.txt").write_text("1 x7\n")
     np.save(tmp_path / "short.npy", np.ones(3, bool))
     np.save(tmp_path / "neg.npy", np.array([0, -2]))
+    (tmp_path / "empty.txt").write_text("# nothing marked\n")
+    np.save(tmp_path / "none.npy", np.zeros(qdrefine.read(SRC).n_triangles, bool))
     out = tmp_path / "out.msh"
     result = run("refine", SRC, out, *[a.format(tmp=tmp_path) for a in extra])
     assert result.returncode == code, result.stderr
@@ -221,3 +226,24 @@ def test_coarsen_needs_the_history(tmp_path, run):
     assert run("refine", SRC, fine, "--mark-box", "0,0,2,1", "--quiet").returncode == 0
     result = run("coarsen", fine, out, "--all", "--scheme", "4t-red")
     assert result.returncode == 0 and "no partition of" in result.stderr
+
+
+def test_coarsen_says_why_nothing_changed(tmp_path, run):
+    """The note names the cause: marks that cover no whole partition, or another scheme
+    (it used to ask "was it refined with 7t-qd?" of a mesh that was)."""
+    out = tmp_path / "out.msh"
+    fine = tmp_path / "fine.msh"
+    assert run("refine", SRC, fine, "--mark-box", "0,0,1,1", "--quiet").returncode == 0
+    some = tmp_path / "one.txt"
+    some.write_text("0\n")  # one child of a partition: nothing can go
+    result = run("coarsen", fine, out, "--mark-file", some)
+    assert result.returncode == 0 and result.stderr == (
+        f"qdrefine: note: no partition of {fine} had all its children marked (one is undone "
+        "only when every child is)\n")
+    quad = tmp_path / "quad.msh"
+    mesh = qdrefine.read(SRC)
+    qdrefine.write(quad, qdrefine.refine(mesh, "4t-le", marked=np.ones(mesh.n_triangles, bool)))
+    result = run("coarsen", quad, out, "--all")
+    assert result.returncode == 0 and result.stderr == (
+        f"qdrefine: note: no partition of {quad} is a 7t-qd partition, but some are 4t-le "
+        "partitions: was it refined with 4t-le? (see --scheme)\n")

@@ -118,6 +118,18 @@ def test_clean_removes_what_a_dead_run_left(tmp_path, run):
     assert result.stdout == f"{tmp_path / 'out.zarr'}: no temporaries to remove\n"
 
 
+def test_clean_refuses_what_is_not_a_store(tmp_path, capsys):
+    qdrefine.write(tmp_path / "mesh.msh", examples.square(1))
+    (tmp_path / "plain").mkdir()
+    for name in ("mesh.msh", "plain"):  # used to say "no temporaries to remove"
+        assert main(["clean", str(tmp_path / name)]) == 1
+        err = capsys.readouterr().err
+        assert err == f"qdrefine: error: {tmp_path / name}: not a qdrefine mesh store (clean " \
+                      "removes the temporary stores that runs writing a store leave next to " \
+                      "it)\n"
+    assert (tmp_path / "mesh.msh").is_file() and (tmp_path / "plain").is_dir()
+
+
 def test_sigterm_is_handled_like_ctrl_c(tmp_path):
     import signal
     import time

@@ -22,12 +22,22 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                      "kept). Unreadable files end with one line 'qdrefine: error: ...'.")
     parser.add_argument("input", metavar="IN", help="mesh file to check (never modified)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
-    parser.add_argument("--min-angle", type=_common.positive_float, default=MIN_ANGLE,
-                        metavar="DEG",
-                        help=f"warn about triangles with a smaller angle (default {MIN_ANGLE:g})")
+    parser.add_argument("--min-angle", type=_angle, default=MIN_ANGLE, metavar="DEG",
+                        help="warn about triangles with a smaller angle, above 0 and at most "
+                        f"60 (default {MIN_ANGLE:g})")
     parser.add_argument("--scheme", default="7t-qd", metavar="NAME", type=_common.scheme_name,
                         help="warn about triangles that refining by this scheme would refuse "
                         "(too thin for float64 children; default 7t-qd)")
+
+
+def _angle(text: str) -> float:
+    """argparse type of ``--min-angle``: degrees in (0, 60]; every triangle's smallest angle
+    is at most 60 degrees, so a larger threshold would flag every triangle."""
+    value = _common.positive_float(text)
+    if not value <= 60:
+        raise argparse.ArgumentTypeError(f"expected degrees above 0 and at most 60 (every "
+                                         f"triangle has an angle of 60 or less), got {text}")
+    return value
 
 
 def run(args: argparse.Namespace) -> int:

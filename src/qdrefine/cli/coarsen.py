@@ -76,7 +76,25 @@ def run(args: argparse.Namespace) -> int:
                   f"{args.scheme} in {_common.counted(cycles, 'cycle')}, "
                   f"{time.perf_counter() - start:.2f} s in all)")
             if mesh.n_triangles == n0 and cycles:
-                print(f"qdrefine: note: no partition of {args.input} had all its children "
-                      f"marked (was it refined with {args.scheme}? see --scheme)",
+                print(f"qdrefine: note: {nothing_coarsened(mesh, args.input, args.scheme)}",
                       file=sys.stderr)
     return 0
+
+
+def nothing_coarsened(mesh, path: str, scheme: str) -> str:
+    """Why coarsening ``mesh`` by ``scheme`` changed nothing: the marks, or the scheme (a
+    mesh refined everywhere by 4T-LE has no 7T family, and the converse)."""
+    everything = np.ones(mesh.n_triangles, dtype=bool)
+    because_of_marks = (f"no partition of {path} had all its children marked (one is undone "
+                        "only when every child is)")
+    if coarsen_marked(mesh, everything, scheme)[0].n_triangles < mesh.n_triangles:
+        return because_of_marks
+    for other in scheme_names():
+        try:
+            smaller = coarsen_marked(mesh, everything, other)[0].n_triangles < mesh.n_triangles
+        except (HistoryMismatch, ValueError):
+            continue
+        if smaller:
+            return (f"no partition of {path} is a {scheme} partition, but some are {other} "
+                    f"partitions: was it refined with {other}? (see --scheme)")
+    return f"no partition of {path} can be undone (its history has none left)"

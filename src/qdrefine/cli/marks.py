@@ -50,6 +50,9 @@ def marker(mesh: Mesh, args: argparse.Namespace) -> Marker:
                              "meets no triangle")
         return lambda m, _: mark_box(m, args.mark_box)
     first = mark_file(mesh, args.mark_file)
+    if not first.any():  # as for a box: an output equal to the input is not what was asked
+        raise ValueError(f"{args.mark_file}: lists no triangle (ids of {args.input}'s "
+                         "triangles, or a boolean mask with some True)")
     return lambda _, parents: first[parents]
 
 

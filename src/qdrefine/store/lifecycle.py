@@ -91,9 +91,14 @@ def clean(path: PathLike, everything: bool = False) -> list[str]:
 
     A temporary is removed when the process that made it is gone (same host) or its maker
     is unknown (older versions); with ``everything``, also those of running processes and
-    of other hosts (when no run for ``path`` is in progress anywhere).
+    of other hosts (when no run for ``path`` is in progress anywhere). Raises
+    ``ValueError`` when ``path`` exists and is not a mesh store (a mesh file, say).
     """
     url = location(path)
+    target_fs, target = filesystem(url)
+    if target_fs.exists(target) and not is_store(url, complete=False):
+        raise ValueError(f"{url}: not a qdrefine mesh store (clean removes the temporary "
+                         "stores that runs writing a store leave next to it)")
     parent, name = split(url)
     fs, root = filesystem(parent or "/")
     try:
