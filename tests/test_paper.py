@@ -22,13 +22,22 @@ from qdrefine.paper.cost import DecisionCost, decision_costs
 from qdrefine.paper.figures import FIGURES
 from qdrefine.paper.report import build_report
 
+STEPS: list[str] = []  # what compute_context reported as it went (qdrefine paper's bar)
+
 
 @pytest.fixture(scope="module")
 def ctx():
     c = compute_context(step=1 / 300, tol=1e-8, iterated_grid=10, levels=3,
-                        angle_measure=False)
+                        angle_measure=False, progress=STEPS.append)
     c["figures"], c["seconds"] = [], 0.0
     return c
+
+
+def test_progress_names_every_part(ctx):
+    from qdrefine.paper import CONTEXT_STEPS, ITERATED_SCHEMES
+
+    assert len(STEPS) == CONTEXT_STEPS and len(set(STEPS)) == CONTEXT_STEPS
+    assert [f"iterating {s}" for s in ITERATED_SCHEMES] == [s for s in STEPS if "iter" in s]
 
 
 def _family(ctx, family, claims=PAPER_CLAIMS, m=None):

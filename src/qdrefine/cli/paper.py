@@ -17,9 +17,10 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..paper import write_all
+    from ..paper import CONTEXT_STEPS, write_all
 
-    path = write_all(args.outdir, figures=not args.no_figures)
+    with _common.Progress(CONTEXT_STEPS + (1 if args.no_figures else 2), args.quiet) as bar:
+        path = write_all(args.outdir, figures=not args.no_figures, progress=bar.step)
     if not args.quiet:
         print(f"wrote {path}" if args.no_figures else
               f"wrote {path} and the figures in {path.parent}")

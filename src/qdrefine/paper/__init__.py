@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,9 @@ __all__ = ["PAPER_CLAIMS", "PAPER_TABLE1", "write_all", "lemma_checks", "find_qh
 #: Schemes of the iterated study.
 ITERATED_SCHEMES = ("7t-qd", "7t-le", "7t-d", "4t-le", "4t-red")
 
+#: How many ``progress`` calls :func:`compute_context` makes.
+CONTEXT_STEPS = 3 + len(ITERATED_SCHEMES)
+
 
 def _qhull_ns(n: int = 2000, seed: int = 0) -> float | None:
     """Time per triangle of ``scipy.spatial.Delaunay`` on the nine points (float)."""
@@ -56,28 +60,41 @@ def _qhull_ns(n: int = 2000, seed: int = 0) -> float | None:
 
 
 def compute_context(step: float = 1 / 1200, tol: float = 1e-10, iterated_grid: int = 60,
-                    levels: int = 6, angle_measure: bool = True) -> dict:
-    """Every number the report and the figures need (see :mod:`.report`)."""
+                    levels: int = 6, angle_measure: bool = True,
+                    progress: Callable[[str], None] | None = None) -> dict:
+    """Every number the report and the figures need (see :mod:`.report`); ``progress(text)``
+    is called as each of the :data:`CONTEXT_STEPS` parts starts."""
+    say = progress or (lambda _: None)
+    say("the diagram's regions")
     res = dg.compute(tol=tol, angle_measure=angle_measure)
     res.extra_areas = {
         "qd_mean_above_d": dg.region_area("qd_mean_above_d", tol=tol).value,
         "I_II_differ": dg.arc_area(lambda x, y: dg._pred("shaded")(x, y)
                                    & (dg._pred("I")(x, y) | dg._pred("II")(x, y))),
     }
+    say("sampling the diagram")
     sample = region_sample(step)
     m = measure(res, sample, decision_costs(), _qhull_ns())
     t0 = time.perf_counter()
     pts = diagram_grid(iterated_grid)
-    its = {s: iterate(s, pts, levels) for s in ITERATED_SCHEMES}
-    search = {s: counterexample_search(s, levels) for s in ITERATED_SCHEMES}
+    its, search = {}, {}
+    for s in ITERATED_SCHEMES:
+        say(f"iterating {s}")
+        its[s] = iterate(s, pts, levels)
+        search[s] = counterexample_search(s, levels)
     iterated_s = time.perf_counter() - t0
-    return {"res": res, "sample": sample, "m": m, "lemmas": lemma_checks(),
-            "qhull": find_qhull_failure(), "iterated": its, "search": search,
+    say("lemmas and Fig. 3")
+    lemmas, qhull = lemma_checks(), find_qhull_failure()
+    return {"res": res, "sample": sample, "m": m, "lemmas": lemmas,
+            "qhull": qhull, "iterated": its, "search": search,
             "iterated_seconds": iterated_s, "claims": PAPER_CLAIMS, "table": PAPER_TABLE1}
 
 
-def write_all(outdir: str | Path, figures: bool = True) -> Path:
-    """Recompute everything and write the figures and ``report.md`` into ``outdir``."""
+def write_all(outdir: str | Path, figures: bool = True,
+              progress: Callable[[str], None] | None = None) -> Path:
+    """Recompute everything and write the figures and ``report.md`` into ``outdir``;
+    ``progress(text)`` is called as each of ``CONTEXT_STEPS + 2`` parts starts (``+ 1``
+    without figures)."""
     start = time.time()
     out = Path(outdir)
     if out.exists() and not out.is_dir():  # before a minute of work, not after it
@@ -85,12 +102,14 @@ def write_all(outdir: str | Path, figures: bool = True) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     if not os.access(out, os.W_OK | os.X_OK):
         raise PermissionError(f"{out}: cannot write into this directory")
-    ctx = compute_context()
+    say = progress or (lambda _: None)
+    ctx = compute_context(progress=say)
+    if figures:
+        say("drawing the figures")
     ctx["figures"] = save_all(out, ctx) if figures else []
     ctx["seconds"] = time.time() - start
     path = out / "report.md"
+    say(f"writing {path}")
     with atomic_path(path) as tmp:  # no partial report.md, and the error names the file
         Path(tmp).write_text(build_report(ctx), encoding="utf-8")
     return path
-
-
