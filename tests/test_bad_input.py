@@ -919,6 +919,32 @@ def test_a_number_with_an_underscore_is_named(tmp_path):
         qdrefine.read(path)
 
 
+NODES41 = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 3 1 {max}\n2 1 0 3\n1\n2\n{last}\n" \
+          "0 0 0\n1 0 0\n0 1 0\n$EndNodes\n$Elements\n1 1 1 {tag}\n2 1 2 1\n{tag} 1 2 {last}\n" \
+          "$EndElements\n"
+
+
+@pytest.mark.parametrize("last, tag, message", [
+    # NumPy's text parser saturates: 10**20 read as 2**63 - 1 and the mesh loaded (review)
+    ("99999999999999999999", "1", r"line 5: node tags must be integers below 2\*\*53 \(the "
+                                  r"first that is not: 1e\+20\)"),
+    ("3", "99999999999999999999", r"line 15: expected an integer below 2\*\*63, got "
+                                  r"'99999999999999999999'"),
+    ("3", "-99999999999999999999", r"line 15: expected an integer below 2\*\*63"),
+])
+def test_integers_beyond_int64_are_refused(tmp_path, last, tag, message):
+    path = tmp_path / "big.msh"
+    path.write_text(NODES41.format(max=last, last=last, tag=tag))
+    with pytest.raises(ValueError, match=r"big\.msh: not a readable Gmsh MSH file \(" + message):
+        qdrefine.read(path)
+
+
+def test_int64_limits_themselves_still_read(tmp_path):
+    path = tmp_path / "max.msh"
+    path.write_text(NODES41.format(max=3, last=3, tag=2**63 - 1))
+    assert qdrefine.read(path).n_triangles == 1
+
+
 def test_parametric_nodes_and_repeated_views(tmp_path):
     """MSH 2.2 saved with Mesh.SaveParametric has ``$ParametricNodes`` instead of
     ``$Nodes``: said so (it said 'no $Nodes section'). A view with two time steps: the last

@@ -35,11 +35,13 @@ def parse(text: bytes, dtype: type, what: str = "a number") -> NDArray:
     float64); :class:`BadNumber` naming the line of the first bad word otherwise."""
     if not text.strip():
         return np.empty(0, dtype=dtype)
-    try:
-        return np.fromstring(text, dtype=dtype, sep=" ")
-    except ValueError:
-        pass
     convert = int if np.dtype(dtype).kind == "i" else float
+    try:
+        values = np.fromstring(text, dtype=dtype, sep=" ")
+    except ValueError:
+        values = None
+    if values is not None and not (convert is int and values.size and _at_limit(values)):
+        return values
     for number, line in enumerate(text.split(b"\n"), start=1):
         for word in line.split():
             try:
@@ -51,7 +53,16 @@ def parse(text: bytes, dtype: type, what: str = "a number") -> NDArray:
                                 "an integer" if convert is int else what) from None
             if convert is int and abs(value) >= 2**63:
                 raise BadNumber(number, word.decode(), "an integer below 2**63")
+    if values is not None:  # the limits themselves were written
+        return values
     raise BadNumber(1, text[:40].decode("utf-8", "replace"), what)  # not reached in practice
+
+
+def _at_limit(values: NDArray[np.int64]) -> bool:
+    """Whether ``values`` reach int64's limits, where ``np.fromstring`` puts integers it
+    cannot hold (it saturates without a word: 10**20 reads as 2**63 - 1)."""
+    limits = np.iinfo(values.dtype)
+    return bool(values.max() == limits.max or values.min() == limits.min)
 
 
 def parse_table(text: bytes, columns: int, what: str = "a number", dtype: type = np.float64

@@ -368,9 +368,11 @@ def _nodes41_by_lines(f: _File, start: int, end: int
 
 
 def _tag_array(f: _File, tags: NDArray, start: int, what: str) -> NDArray[np.int64]:
-    if tags.dtype.kind == "f":
-        if len(tags) and not ((tags == np.round(tags)) & (np.abs(tags) < EXACT_INT)).all():
-            raise f.error(start, f"{what} tags must be integers")
+    if tags.dtype.kind == "f" and len(tags):
+        bad = ~((tags == np.round(tags)) & (np.abs(tags) < EXACT_INT))
+        if bad.any():
+            raise f.error(start, f"{what} tags must be integers below 2**53 (the first "
+                                 f"that is not: {float(tags[bad.argmax()]):.17g})")
     return tags.astype(np.int64)
 
 
