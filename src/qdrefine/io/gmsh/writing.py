@@ -156,8 +156,9 @@ def write_chunks(path: Path, source: Chunks, *, binary: bool = False,
     _write(path, source, binary, version, {}, [])
 
 
-#: The tags an MSH file holds (Gmsh's tags are C ``int``; binary files write int32).
-TAG_RANGE = (-(2**31), 2**31 - 1)
+#: The tags an MSH file holds: Gmsh's tags are C ``int`` (binary files write int32), and
+#: Gmsh reads a negative physical tag as its absolute value (text MSH 2.2 drops the element).
+TAG_RANGE = (0, 2**31 - 1)
 
 
 def check_tag_range(path: Path, what: str, tags: NDArray) -> None:
@@ -166,6 +167,10 @@ def check_tag_range(path: Path, what: str, tags: NDArray) -> None:
     tags = np.asarray(tags)
     if tags.size and (tags.min() < lo or tags.max() > hi):
         far = int(tags[np.flatnonzero((tags < lo) | (tags > hi))[0]])
+        if far < 0:
+            raise ValueError(f"{path}: {what} {far} is negative, which Gmsh reads as {-far} "
+                             "(text MSH 2.2 loses the element); shift the tags, or write "
+                             ".vtu or .xdmf")
         raise ValueError(f"{path}: {what} {far} does not fit the 32-bit tags of Gmsh files "
                          f"({lo} to {hi})")
 
