@@ -848,6 +848,36 @@ def test_xdmf_and_xmf_of_one_name_are_one_output(tmp_path, monkeypatch, capsys):
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
 
 
+@pytest.mark.parametrize("name, refused", [
+    ("tag", (".vtu", ".xdmf", ".vtk")), ("gmsh:physical", (".vtu", ".xdmf", ".vtk")),
+    ("medit:ref", (".vtu", ".xdmf", ".vtk")), ("cell_tags", (".vtu", ".xdmf", ".vtk")),
+    ("gmsh:geometrical", (".xdmf", ".vtk")), ("gmsh:dim_tags", (".xdmf", ".vtk")),
+])
+def test_cell_data_named_like_the_tags_is_refused(tmp_path, name, refused):
+    """A field named ``tag`` came back from .vtu, .xdmf and .vtk as the cell tags, every
+    tagged edge lost, without a word (review): refused where the readers would take it,
+    written where they do not (.msh: a view)."""
+    from qdrefine import interop
+
+    mesh = examples.jittered_square(3, 0, 0.0, "all")
+    field = mesh.replace(cell_data={name: np.arange(mesh.n_triangles) % 5 + 10})
+    for ext in (".vtu", ".xdmf", ".vtk", ".msh"):
+        path = tmp_path / f"c{ext}"
+        if ext in refused:
+            with pytest.raises(ValueError, match=rf"c\{ext}: cell data {name!r} has a name that "
+                                                 "readers of this format take as the cell tags"):
+                qdrefine.write(path, field)
+            assert not list(tmp_path.iterdir())
+            continue
+        back = qdrefine.read(_written(path, field))
+        np.testing.assert_array_equal(back.cell_tags, mesh.cell_tags)
+        np.testing.assert_array_equal(back.edge_tags, mesh.edge_tags)
+        np.testing.assert_array_equal(back.cell_data[name], field.cell_data[name])
+        path.unlink()
+    with pytest.raises(ValueError, match=f"cell data {name!r} has a name"):
+        interop.to_meshio(field)
+
+
 def test_what_msh_and_xdmf_files_cannot_hold_is_refused(tmp_path):
     """Tags beyond 32 bits (binary MSH 2.2 wrapped them to other tags, text MSH wrote files
     it could not read), a physical name with a line break in MSH, a control character in

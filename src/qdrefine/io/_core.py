@@ -218,9 +218,25 @@ def writable_data(value) -> NDArray:
     return a.astype(np.float32) if a.dtype.kind == "f" and a.dtype.itemsize == 2 else a
 
 
-def mesh_data(mesh) -> tuple[dict[str, NDArray], dict[str, NDArray]]:
+#: Cell-data names that the VTU and meshio readers take as the cell tags (the first present,
+#: in this order for VTU), and those meshio's readers skip (Gmsh's entity tags). A mesh's
+#: own cell data under one of them would come back as its tags (its tagged edges lost) or
+#: not at all, so the writers refuse it (``mesh_data``'s ``reserved``).
+TAG_NAMES = ("tag", "gmsh:physical", "medit:ref", "cell_tags")
+SKIPPED_NAMES = ("gmsh:geometrical", "gmsh:dim_tags")
+
+
+def mesh_data(mesh, path: PathLike | None = None, reserved: tuple[str, ...] = ()
+              ) -> tuple[dict[str, NDArray], dict[str, NDArray]]:
     """Point data and cell data of ``mesh`` to write, the history (transitions, origins)
-    as cell data."""
+    as cell data; ``ValueError`` naming ``path`` for cell data under a ``reserved`` name
+    (the format's names of the tags, :data:`TAG_NAMES`)."""
+    clash = next((name for name in mesh.cell_data or {} if name in reserved), None)
+    if clash is not None:
+        where = f"{path}: " if path is not None else ""
+        raise ValueError(f"{where}cell data {clash!r} has a name that readers of this format "
+                         "take as the cell tags (it would come back as the tags, or not at "
+                         "all); rename it" + (", or write .msh" if path is not None else ""))
     cell_data = dict(mesh.cell_data or {})
     if mesh.transitions is not None:
         cell_data[TRANSITIONS] = np.asarray(mesh.transitions, dtype=np.int64)

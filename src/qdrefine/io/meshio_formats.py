@@ -19,6 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._core import (
+    SKIPPED_NAMES,
+    TAG_NAMES,
     RawMesh,
     atomic_path,
     check_regular,
@@ -33,7 +35,7 @@ __all__ = ["read_with_meshio", "write_with_meshio", "meshio_mesh", "raw_from_mes
 #: Cell-data names read as tags, in order of preference.
 TAG_KEYS = ("gmsh:physical", "medit:ref", "tag", "cell_tags")
 _WRITE_KEY = {"gmsh": "gmsh:physical", "medit": "medit:ref"}
-_SKIP = {"gmsh:geometrical", "gmsh:dim_tags"}
+_SKIP = set(SKIPPED_NAMES)
 
 
 @contextlib.contextmanager
@@ -214,7 +216,7 @@ def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: b
     import meshio
 
     m = meshio_mesh(mesh, _WRITE_KEY.get(meshio_name, "tag"), tags=tags, data=data,
-                    flat=meshio_name == "medit")
+                    flat=meshio_name == "medit", path=path)
     kwargs = dict(options or {})
     if binary is not None:
         kwargs["binary"] = binary
@@ -223,12 +225,15 @@ def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: b
 
 
 def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
-                data: bool = True, flat: bool = False, names: bool = False):
+                data: bool = True, flat: bool = False, names: bool = False,
+                path: Path | None = None):
     """``mesh`` as a ``meshio.Mesh``: points with ``z = 0`` (``flat``: 2 coordinates), a
     ``line`` block of the tagged edges and a ``triangle`` block, the tags as the cell data
     ``tag_key`` (untagged triangles: 0), point data, the triangles' cell data (the edges'
     rows zero) and, with ``names``, the physical names as ``field_data``
-    (``name -> [tag, dim]``, as meshio's Gmsh reader gives them)."""
+    (``name -> [tag, dim]``, as meshio's Gmsh reader gives them). Cell data under one of
+    :data:`TAG_NAMES` or :data:`SKIPPED_NAMES` is refused (``path``: the file, for the
+    message)."""
     import meshio
 
     n = mesh.n_points
@@ -247,7 +252,7 @@ def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
     cell_data: dict[str, list[NDArray]] = {tag_key: tag_blocks}
     point_data: dict[str, NDArray] = {}
     if data:
-        point_data, tri_data = mesh_data(mesh)
+        point_data, tri_data = mesh_data(mesh, path, TAG_NAMES + SKIPPED_NAMES)
         point_data = {k: writable_data(v) for k, v in point_data.items()}
         for name, value in tri_data.items():
             value = writable_data(value)

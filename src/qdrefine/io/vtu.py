@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._core import (
+    TAG_NAMES,
     RawMesh,
     atomic_path,
     from_blocks,
@@ -46,7 +47,6 @@ _CELLS = {1: ("vertex", 1), 3: ("line", 2), 5: ("triangle", 3), 9: ("quad", 4),
           2: ("poly_vertex", 0), 4: ("polyline", 0), 6: ("triangle_strip", 0),
           7: ("polygon", 0), 8: ("pixel", 4), 11: ("voxel", 8)}
 _META = "qdrefine"
-_TAG_KEYS = ("tag", "gmsh:physical", "medit:ref", "cell_tags")
 _CHUNK = 1 << 20  # bytes per compressed block
 
 
@@ -137,7 +137,7 @@ def _read(path: Path, data: bytes) -> RawMesh:
     if n_cells and (sizes.min() < 0 or offsets[-1] > len(conn)):
         raise ValueError("Cells: offsets do not fit the connectivity")
     field_items = {item.get("Name"): item for item in piece.findall("./CellData/DataArray")}
-    key = next((k for k in _TAG_KEYS if k in field_items), None)
+    key = next((k for k in TAG_NAMES if k in field_items), None)
     cell_tags = array(field_items[key]).ravel() if key else None
     if cell_tags is not None and len(cell_tags) != n_cells:
         raise ValueError(f"CellData {key!r}: expected {n_cells} values")
@@ -162,7 +162,7 @@ def _read(path: Path, data: bytes) -> RawMesh:
         point_data[name] = _restore(array(item), shapes.get("point", {}).get(name), n)
     cell_data = {}
     for name, item in field_items.items():
-        if name == key and name in _TAG_KEYS:
+        if name == key and name in TAG_NAMES:
             continue
         values = array(item)
         if len(values) != n_cells:
@@ -243,7 +243,7 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False) -> N
     types = np.concatenate([np.full(m, 5, np.uint8), np.full(k, 3, np.uint8)])
     xyz = np.zeros((n, 3))
     xyz[:, :2] = mesh.points
-    point_data, cell_data = mesh_data(mesh)
+    point_data, cell_data = mesh_data(mesh, path, TAG_NAMES)
     cell_fields = {}
     if mesh.cell_tags is not None or k:
         cell_tags = mesh.cell_tags if mesh.cell_tags is not None else np.zeros(m, np.int64)

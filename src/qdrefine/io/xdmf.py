@@ -22,7 +22,15 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 
-from ._core import RawMesh, atomic_paths, cannot_write, check_regular, mesh_data
+from ._core import (
+    SKIPPED_NAMES,
+    TAG_NAMES,
+    RawMesh,
+    atomic_paths,
+    cannot_write,
+    check_regular,
+    mesh_data,
+)
 
 __all__ = ["read", "write"]
 
@@ -141,7 +149,7 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # no
         topology = ("Mixed", m + k, mixed)
     else:
         topology = ("Triangle", m, tris)
-    point_data, cell_data = mesh_data(mesh)
+    point_data, cell_data = mesh_data(mesh, path, TAG_NAMES + SKIPPED_NAMES)  # read by meshio
     cells = {}
     if mesh.cell_tags is not None or k:
         cell_tags = mesh.cell_tags if mesh.cell_tags is not None else np.zeros(m, np.int64)
