@@ -267,3 +267,28 @@ def test_input_the_mesh_would_refuse_is_refused_on_the_device_with_its_message()
         else:
             assert_identical(host, device)
     assert refine_device(thin, [[0, 1, 2]], "4t-red", strict=False).exact_stage == (1,)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_data_comes_through_as_on_the_cpu(scheme):
+    """Point data (interpolated on the host from each level's device edges), cell data,
+    physical names and the history: the CPU's, bit for bit (the GPU path dropped all of
+    them; data review, 2026-11-27)."""
+    mesh = jittered_grid(3, 7, 0.5, True)
+    x, y = mesh.points.T
+    mesh = mesh.replace(
+        point_data={"u": 3 * x - y, "v": np.column_stack([x, y]).astype(np.float32),
+                    "k": np.arange(mesh.n_points)},
+        cell_data={"mat": np.arange(mesh.n_triangles) % 3,
+                   "w": np.ones((mesh.n_triangles, 2, 2))},
+        physical_names={(2, 1): "plate", (1, 1): "wall"})
+    for levels in (1, 2):
+        cpu, gpu = refine(mesh, scheme, levels), refine_mesh(mesh, scheme, levels)
+        assert_identical(cpu, gpu)
+        for data in ("point_data", "cell_data"):
+            a, b = getattr(cpu, data), getattr(gpu, data)
+            assert sorted(a) == sorted(b)
+            for name in a:
+                assert a[name].dtype == b[name].dtype and a[name].shape == b[name].shape
+                assert np.array_equal(a[name].view(np.uint8), b[name].view(np.uint8)), name
+        assert dict(gpu.physical_names) == dict(cpu.physical_names)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import cuda
+from numpy.typing import NDArray
 
 __all__ = ["DeviceEdges", "THREADS", "blocks", "edge_id", "exclusive_scan", "sort_edges",
            "zeros"]
@@ -57,6 +58,16 @@ class DeviceEdges:
     first: object
     hi: object
     n_edges: int
+
+    def ends_host(self) -> NDArray[np.int64]:
+        """The edges ``(E, 2) int64`` on the host, by id: ``(v, w)``, ``v < w``."""
+        first = self.first.copy_to_host().astype(np.int64)
+        starts = self.starts.copy_to_host().astype(np.int64)
+        hi = self.hi.copy_to_host()
+        counts = np.diff(first)
+        lo = np.repeat(np.arange(len(counts), dtype=np.int64), counts)
+        slot = np.repeat(starts[:-1] - first[:-1], counts) + np.arange(self.n_edges)
+        return np.column_stack([lo, hi[slot].astype(np.int64)])
 
 
 def sort_edges(triangles, n_points: int) -> DeviceEdges:

@@ -22,6 +22,7 @@ from numba.core import config
 from numpy.typing import NDArray
 
 from ..arguments import as_count
+from ..fields import refine_point_data
 from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, check_memory, memory_needed
 from ..mesh import Mesh, index_dtype
@@ -100,6 +101,15 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
     ValueError
         On bad shapes, dtypes or indices, and as :func:`qdrefine.refine` with ``strict``.
     """
+    return _refine_device(points, triangles, scheme, levels, cell_tags=cell_tags, edges=edges,
+                          edge_tags=edge_tags, strict=strict)[0]
+
+
+def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int = 1, *,
+                   cell_tags=None, edges=None, edge_tags=None, strict: bool = True,
+                   edge_ends: bool = False) -> tuple[DeviceMesh, list[NDArray[np.int64]]]:
+    """:func:`refine_device`; with ``edge_ends``, also each level's edges ``(E, 2) int64``
+    on the host (lower end first, in the numbering of the level's new points)."""
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
     require_gpu()
@@ -125,12 +135,14 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
     if levels:
         check_points(pts)
     tables = _Tables(sch)
-    exact = []
+    exact: list[int] = []
+    ends: list[NDArray[np.int64]] = []
     first = tri
     for level in range(1, levels + 1):
         try:
-            pts, tri, tags, tagged, etags, n_hard = _level(pts, tri, tags, tagged, etags,
-                                                           tables, strict, level == 1)
+            pts, tri, tags, tagged, etags, n_hard = _level(
+                pts, tri, tags, tagged, etags, tables, strict, level == 1,
+                keep=ends.append if edge_ends else None)
         except InputError as exc:
             raise ValueError(str(exc)) from None
         except RefusedTriangle as exc:  # named by the input triangle, as on the CPU
@@ -146,7 +158,7 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
         import cupy
 
         arrays = tuple(None if a is None else cupy.asarray(a) for a in arrays)
-    return DeviceMesh(*arrays, exact_stage=tuple(exact))
+    return DeviceMesh(*arrays, exact_stage=tuple(exact)), ends
 
 
 def require_gpu() -> None:
@@ -165,13 +177,21 @@ def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     levels = as_count(levels, "levels")
     require_gpu()
     check_memory(mesh, sch, levels)  # the result comes back to the host
-    out = refine_device(mesh.points, mesh.triangles, sch, levels, cell_tags=mesh.cell_tags,
-                        edges=mesh.edges, edge_tags=mesh.edge_tags, strict=strict)
-    origins = None if mesh.origins is None else \
-        np.repeat(mesh.origins, sch.n_children ** levels, axis=0)
+    out, ends = _refine_device(mesh.points, mesh.triangles, sch, levels,
+                               cell_tags=mesh.cell_tags, edges=mesh.edges,
+                               edge_tags=mesh.edge_tags, strict=strict,
+                               edge_ends=bool(mesh.point_data))
+    point_data = mesh.point_data
+    for level_ends in ends:  # on the host, as the CPU does it (the same edge numbering)
+        point_data = refine_point_data(point_data, level_ends, sch.stencil.per_edge)
+    copies = sch.n_children ** levels
+    cell_data = {name: np.repeat(value, copies, axis=0)
+                 for name, value in (mesh.cell_data or {}).items()}
+    origins = None if mesh.origins is None else np.repeat(mesh.origins, copies, axis=0)
     return Mesh._trusted(*(None if a is None else _host(a) for a in
                            (out.points, out.triangles, out.cell_tags, out.edges,
-                            out.edge_tags)), origins=origins)
+                            out.edge_tags)), point_data or None, cell_data,
+                         mesh.physical_names, origins=origins)
 
 
 def check_device_memory(n_points: int, n_triangles: int, scheme: Scheme, levels: int,
@@ -209,13 +229,16 @@ class _Tables:
 
 
 def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: bool,
-           clock=None):
+           clock=None, keep=None):
     """One uniform level on device arrays (:func:`qdrefine.refine.refine_arrays`); with
     ``check`` (the input level), a triangle that is not counter-clockwise is refused.
-    ``clock(name)``, if given, is called after each pass (:func:`pass_times`)."""
+    ``clock(name)``, if given, is called after each pass (:func:`pass_times`);
+    ``keep(ends)``, if given, receives the level's edges on the host."""
     n, m = pts.shape[0], tri.shape[0]
     per = tab.per_edge
     ed = sort_edges(tri, n)
+    if keep is not None:
+        keep(ed.ends_host())
     if clock:
         clock("edge numbering")
     n_new = n + per * ed.n_edges
