@@ -1000,3 +1000,27 @@ def test_parametric_nodes_and_repeated_views(tmp_path):
                                          r"\(time steps of a view\); the last one is kept"):
         mesh = qdrefine.read(tmp_path / "s.msh")
     assert mesh.point_data["u"].tolist() == [2.5, 2.5, 2.5]
+
+
+def test_names_and_shapes_a_format_cannot_hold(tmp_path):
+    """Found by the data review (2026-11-27): VTU turned a tab or a line break in a data
+    name into a space (two fields became one, silently); a field of shape (N, 0) made an
+    unreadable VTU; '$End...' in an MSH name made a file no reader could read."""
+    square = examples.square(2)
+    n = square.n_points
+    tabs = square.replace(point_data={"a\tb": np.zeros(n), "a b": np.ones(n),
+                                      "x\ny\rz": np.arange(n) * 1.0})
+    back = qdrefine.read(_written(tmp_path / "t.vtu", tabs))
+    assert sorted(back.point_data) == sorted(tabs.point_data)
+    np.testing.assert_array_equal(back.point_data["a b"], np.ones(n))
+    with pytest.raises(ValueError, match=r"z\.vtu: data 'none' has no values per row \(shape "
+                                         r"\(9, 0\)\)"):
+        qdrefine.write(tmp_path / "z.vtu", square.replace(point_data={"none": np.zeros((n, 0))}))
+    named = square.replace(cell_tags=np.ones(square.n_triangles, np.int64),
+                           physical_names={(2, 1): "a $EndPhysicalNames b"})
+    with pytest.raises(ValueError, match=r"physical name .* contains '\$End'"):
+        qdrefine.write(tmp_path / "e.msh", named)
+    with pytest.raises(ValueError, match=r"point data name 'q\$EndQdrefineData' contains"):
+        qdrefine.write(tmp_path / "e.msh", square.replace(
+            point_data={"q$EndQdrefineData": np.zeros(n)}))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.vtu"]

@@ -313,3 +313,26 @@ def test_history_rows_of_a_mirrored_mesh(tmp_path):
     expected = base.points * [-1.0, 1.0]
     assert sorted(map(tuple, np.sort(expected[base.triangles], axis=1).reshape(-1, 6).tolist())) \
         == sorted(map(tuple, np.sort(out.points[out.triangles], axis=1).reshape(-1, 6).tolist()))
+
+
+@pytest.mark.parametrize("name", ["l_shape", "plate_with_hole", "grid"])
+def test_triangles_that_stay_keep_their_own_cell_data(name):
+    """A restored triangle with a neighbour two levels finer is expanded again: its children
+    are the input's, and each keeps its own cell data (they took the family's first
+    child's; data review, 2026-11-27)."""
+    base = examples.square(4) if name == "grid" else examples.gmsh_mesh(name)
+    mesh = refine(base, marked=np.arange(0, base.n_triangles, 3))
+    mesh = refine(mesh, marked=np.arange(0, mesh.n_triangles, 5))
+    mesh = mesh.replace(cell_data={"centroid": mesh.points[mesh.triangles].mean(axis=1)})
+    out = coarsen(mesh, np.ones(mesh.n_triangles, dtype=bool))
+
+    def rows(m):
+        return {tuple(sorted(map(tuple, t.tolist()))): i
+                for i, t in enumerate(m.points[m.triangles])}
+
+    before = rows(mesh)
+    stayed = [(j, before[key]) for key, j in rows(out).items() if key in before]
+    assert stayed
+    for j, i in stayed:
+        np.testing.assert_array_equal(out.cell_data["centroid"][j],
+                                      mesh.cell_data["centroid"][i])

@@ -61,9 +61,10 @@ def coarsen(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd") -> Me
         remaining points need, chosen as refinement chooses them (no edge gets new
         points; a transition that uses its centroid gets it as a new point, after the
         others). A restored triangle with a neighbour two levels finer keeps its
-        children. Points no triangle uses any more are removed (the others keep their
-        order); tags, tagged edges (joined again), cell data (that of the child with the
-        lowest row), point data and the history are kept. ``coarsen(refine(m,
+        children, each with its own cell data. Points no triangle uses any more are
+        removed (the others keep their order); tags, tagged edges (joined again), cell
+        data (a restored triangle's: that of its child with the lowest row), point data
+        and the history are kept. ``coarsen(refine(m,
         marked=k), all)`` is ``m`` again, with the history added. Details:
         ``docs/adaptive.md``, "Coarsening".
 
@@ -153,9 +154,31 @@ def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
     if (cl.split & ~cl.pre).any():
         raise RuntimeError("qdrefine internal error: coarsening split an edge without points")
     out, parents, fam2, _, _, _ = emit_step(inp, tree, cl)
+    restored = order[parents] >= kept.size  # children of a restored (or re-expanded) row
     parents = stands_for[parents]
+    gone_rows = np.flatnonzero(gone)
+    same = same_rows(out.triangles[restored], mesh.triangles[gone_rows])
+    # a re-expanded family's children are the input's: each stands for itself (its cell
+    # data, its origin), not for the family's first child
+    parents[np.flatnonzero(restored)[same >= 0]] = gone_rows[same[same >= 0]]
+    if mesh.cell_data and (same >= 0).any():  # emitted from the coarse rows' (first child's)
+        out = Mesh._trusted(out.points, out.triangles, out.cell_tags, out.edges, out.edge_tags,
+                            out.point_data, {name: v[parents] for name, v in
+                                             mesh.cell_data.items()}, out.physical_names)
     origins = mesh.origins[parents]
     return _without_unused(mesh, _origin_rows(out, fam2, origins), fam2, origins), parents
+
+
+def same_rows(rows: NDArray, pool: NDArray) -> NDArray[np.int64]:
+    """For each of ``rows (R, 3)``, the row of ``pool (P, 3)`` with the same three vertices
+    (in any order), or -1."""
+    if not len(rows) or not len(pool):
+        return np.full(len(rows), -1, dtype=np.int64)
+    keys = np.ascontiguousarray(np.sort(np.concatenate([pool, rows]), axis=1), dtype=np.int64)
+    _, which = np.unique(keys.view([("", np.int64)] * 3).ravel(), return_inverse=True)
+    first = np.full(which.max() + 1, -1, dtype=np.int64)
+    first[which[:len(pool)][::-1]] = np.arange(len(pool) - 1, -1, -1)
+    return first[which[len(pool):]]
 
 
 def _origin_rows(out: Mesh, fam: Families, origins: NDArray[np.int64]) -> Mesh:

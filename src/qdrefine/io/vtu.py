@@ -267,6 +267,9 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False) -> N
         a = writable_data(a)
         if a.dtype.kind not in "iuf":
             raise ValueError(f"{path}: data {name!r} of dtype {a.dtype} cannot be written")
+        if a.ndim > 1 and not np.prod(a.shape[1:]):
+            raise ValueError(f"{path}: data {name!r} has no values per row (shape "
+                             f"{a.shape}), which a VTK DataArray cannot hold")
         a = np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<"))
         comps = f' NumberOfComponents="{int(np.prod(a.shape[1:]))}"' if a.ndim > 1 else ""
         body = _encode(a, compress)
@@ -309,5 +312,8 @@ def _encode(a: NDArray, compress: bool) -> list:
 
 
 def _attr(text: str) -> str:
-    return re.sub(r'[&<>"]', lambda m: {"&": "&amp;", "<": "&lt;", ">": "&gt;",
-                                        '"': "&quot;"}[m.group()], text)
+    """``text`` for an XML attribute value (tabs and line breaks too: XML reads them in an
+    attribute as spaces, so "a\tb" came back as "a b")."""
+    return re.sub(r'[&<>"\t\n\r]', lambda m: {"&": "&amp;", "<": "&lt;", ">": "&gt;",
+                                              '"': "&quot;", "\t": "&#9;", "\n": "&#10;",
+                                              "\r": "&#13;"}[m.group()], text)

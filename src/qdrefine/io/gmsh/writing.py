@@ -186,6 +186,9 @@ def _check_tags_and_names(path: Path, mesh) -> None:
         if "\n" in name or "\r" in name:
             raise ValueError(f"{path}: physical name {name!r} ({dim}, {tag}) contains a line "
                              "break, which MSH files cannot hold")
+        if "$End" in name:  # readers find a section's end by its marker, quoted or not
+            raise ValueError(f"{path}: physical name {name!r} ({dim}, {tag}) contains "
+                             "'$End', which ends an MSH section where it stands")
 
 
 def _check_version(path: Path, version: str) -> None:
@@ -367,6 +370,9 @@ def _data_sections(path: Path, mesh, point_data: dict, cell_data: dict, binary: 
             if '"' in name or "\n" in name:
                 raise ValueError(f"{path}: {where} data name {name!r} contains a quote or a "
                                  "line break, which MSH files cannot hold")
+            if "$End" in name:
+                raise ValueError(f"{path}: {where} data name {name!r} contains '$End', "
+                                 "which ends an MSH section where it stands")
             flat = a.reshape(len(a), -1).astype(np.float64)
             if where == "cell" and mesh.edges is not None and len(mesh.edges):
                 # values for the line elements too (0), as meshio expects one per element
