@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 import qdrefine
 from meshes import jittered_grid
-from qdrefine import Mesh, refine, scheme_names
+from qdrefine import Mesh, coarsen, examples, refine, scheme_names
 from qdrefine.cli import main
 from qdrefine.fields import inherit_cell_data, interpolate_point_data
 
@@ -91,3 +91,19 @@ def test_command_line_format_version(tmp_path):
     assert main(["convert", str(tmp_path / "in.msh"), str(tmp_path / "o.vtu"),
                  "--format-version", "2.2", "-q"]) == 1
     assert not (tmp_path / "o.vtu").exists()
+
+
+def test_local_refinement_and_coarsening_keep_floating_dtypes():
+    """float32 and float16 fields stay so through local refinement and coarsening, as in
+    uniform refinement (they became float64; data review, 2026-11-27); integers become
+    float64 everywhere."""
+    mesh = examples.gmsh_mesh("l_shape")
+    x = mesh.points[:, 0]
+    mesh = mesh.replace(point_data={"f4": x.astype(np.float32), "f2": x.astype(np.float16),
+                                    "i": np.arange(mesh.n_points)})
+    want = {"f4": np.float32, "f2": np.float16, "i": np.float64}
+    fine = refine(mesh, marked=[0, 5])
+    for out in (refine(mesh), fine, refine(mesh, marked=np.ones(mesh.n_triangles, bool)),
+                coarsen(fine, np.ones(fine.n_triangles, bool))):
+        assert {k: v.dtype for k, v in out.point_data.items()} == \
+            {k: np.dtype(t) for k, t in want.items()}

@@ -128,7 +128,9 @@ def new_point_data(data: dict, n: int, keys: NDArray[np.int64], pts: NDArray[np.
     total = n + ids.size + corners.shape[0]
     out = {}
     for name, f in data.items():
-        v = np.zeros((total,) + f.shape[1:], dtype=np.result_type(f.dtype, np.float64))
+        # as uniform refinement (qdrefine.fields): floating fields keep their dtype
+        v = np.zeros((total,) + f.shape[1:], dtype=f.dtype if f.dtype.kind == "f" else
+                     np.float64)
         v[:n] = f
         known = np.zeros(total, dtype=bool)
         known[:n] = True
