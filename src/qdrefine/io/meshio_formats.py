@@ -196,17 +196,23 @@ def _arrays(m) -> tuple:
         tags.append(None if key is None else np.asarray(m.cell_data[key][i]).reshape(-1))
         if tags[-1] is not None and len(tags[-1]) != len(data):
             raise ValueError(f"{len(tags[-1])} tags for {len(data)} {block.type} cells")
-    point_data = {name: np.asarray(v) for name, v in m.point_data.items()
+    point_data = {name: _native(v) for name, v in m.point_data.items()
                   if np.asarray(v).dtype.kind in "biuf" and len(v) == len(points)}
     cell_data = {}
     triangles = [i for i, b in enumerate(m.cells) if b.type == "triangle"]
     for name, per_block in m.cell_data.items():
         if name in TAG_KEYS or name in _SKIP or not triangles:
             continue
-        parts = [np.asarray(per_block[i]) for i in triangles]
+        parts = [_native(per_block[i]) for i in triangles]
         if all(p.dtype.kind in "biuf" for p in parts):
             cell_data[name] = np.concatenate(parts)
     return points, blocks, tags, point_data, cell_data
+
+
+def _native(values) -> NDArray:
+    """``values`` in this machine's byte order (meshio's VTK reader gives big-endian)."""
+    a = np.asarray(values)
+    return a.astype(a.dtype.newbyteorder("=")) if a.dtype.byteorder not in "=|" else a
 
 
 def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: bool,
@@ -215,6 +221,8 @@ def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: b
     them)."""
     import meshio
 
+    if data:
+        mesh = _rows_of_numbers(path, mesh)
     m = meshio_mesh(mesh, _WRITE_KEY.get(meshio_name, "tag"), tags=tags, data=data,
                     flat=meshio_name == "medit", path=path)
     kwargs = dict(options or {})
@@ -222,6 +230,23 @@ def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: b
         kwargs["binary"] = binary
     with atomic_path(path) as tmp, quiet_meshio(path):
         meshio.write(tmp, m, file_format=meshio_name, **kwargs)
+
+
+def _rows_of_numbers(path: Path, mesh):
+    """``mesh`` with every data field of more than one axis per row flattened to one
+    (meshio's VTK writer declares a (2, 2) field per point as 4 numbers and writes an
+    unreadable file otherwise), with one warning naming them."""
+    def flat(data):
+        return {name: np.asarray(v).reshape(len(v), -1) if np.ndim(v) > 2 else v
+                for name, v in (data or {}).items()}
+
+    shaped = [f"{name} {np.shape(v)}" for data in (mesh.point_data, mesh.cell_data)
+              for name, v in (data or {}).items() if np.ndim(v) > 2]
+    if not shaped:
+        return mesh
+    warnings.warn(f"{path}: this format holds one row of numbers per point or cell: "
+                  f"{', '.join(shaped)} written flat (rows, product of the rest)", stacklevel=4)
+    return mesh.replace(point_data=flat(mesh.point_data), cell_data=flat(mesh.cell_data))
 
 
 def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,

@@ -162,6 +162,8 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # no
 
     def item(a: np.ndarray) -> str:
         a = np.asarray(a)
+        if a.dtype == np.float16:  # XDMF has no 16-bit floats; float32 holds them exactly
+            a = a.astype(np.float32)
         key = a.dtype.str[1:]
         if key not in _TYPES:
             raise ValueError(f"{path}: data of dtype {a.dtype} cannot be written to XDMF")
