@@ -956,6 +956,10 @@ def test_vtk_fields_with_several_axes_per_row_read_back(tmp_path):
     np.testing.assert_array_equal(back.point_data["T"], mesh.point_data["T"].reshape(n, 4))
     np.testing.assert_array_equal(back.cell_data["c"], np.ones((m, 6)))
     assert back.point_data["i"].dtype == np.dtype(np.int16)  # native order, not '>i2'
+    for name in ("a b", "", "a\tb"):  # meshio's raw WriteError, or an unreadable file
+        with pytest.raises(ValueError, match=r"s\.vtk: data name .* is not one word"):
+            qdrefine.write(tmp_path / "s.vtk", square.replace(point_data={name: np.zeros(n)}))
+    assert not (tmp_path / "s.vtk").exists()
     with pytest.raises(ValueError, match=r"t\.vtu: VTU files are written with binary data only"):
         qdrefine.write(tmp_path / "t.vtu", square, binary=False)
 

@@ -223,6 +223,8 @@ def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: b
 
     if data:
         mesh = _rows_of_numbers(path, mesh)
+        if meshio_name == "vtk":
+            _check_vtk_names(path, mesh)
     m = meshio_mesh(mesh, _WRITE_KEY.get(meshio_name, "tag"), tags=tags, data=data,
                     flat=meshio_name == "medit", path=path)
     kwargs = dict(options or {})
@@ -230,6 +232,16 @@ def write_with_meshio(path: Path, mesh, meshio_name: str, *, tags: bool, data: b
         kwargs["binary"] = binary
     with atomic_path(path) as tmp, quiet_meshio(path):
         meshio.write(tmp, m, file_format=meshio_name, **kwargs)
+
+
+def _check_vtk_names(path: Path, mesh) -> None:
+    """VTK legacy files name a field by one word: an empty name, or one with a space or a
+    tab, made meshio fail or write a file nothing reads."""
+    for data in (mesh.point_data, mesh.cell_data):
+        for name in data or {}:
+            if not name or len(name.split()) != 1 or name.strip() != name:
+                raise ValueError(f"{path}: data name {name!r} is not one word, which VTK "
+                                 "legacy files need; rename it, or write .vtu")
 
 
 def _rows_of_numbers(path: Path, mesh):
