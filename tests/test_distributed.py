@@ -586,3 +586,21 @@ def test_signals_during_cluster_start_up_wait_for_it():
                                       "sync.<locals>.cancel at 0x7f>)"))
     assert keep(record(NameError, "Exception in callback functools.partial(<function f>)"))
     assert keep(record(ValueError, "Exception in callback sync.<locals>.cancel"))
+
+
+def test_a_script_without_a_main_guard_fails_instead_of_hanging(tmp_path):
+    """The documented example run as a script without ``if __name__ == "__main__":`` hung
+    forever, deaf to SIGTERM (docs review, 2026-11-27): each worker process imported the
+    script again and waited for a cluster of its own. Now the workers fail at once, saying
+    why, and the run stops."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "unguarded.py"
+    script.write_text("from qdrefine.distributed import local_client\n"
+                      "client = local_client(n_workers=1)\n"
+                      "print('started')\n")
+    run = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=240)
+    assert run.returncode != 0 and "started" not in run.stdout
+    assert "put the script's code under 'if __name__ == \"__main__\":'" in run.stderr

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import logging
+import multiprocessing
 import os
 import signal
 import time
@@ -73,6 +74,13 @@ def local_client(n_workers: int | None = None, memory_limit: str | float = "auto
     from dask.system import CPU_COUNT
     from distributed import Client
 
+    if processes and getattr(multiprocessing.current_process(), "_inheriting", False):
+        # a worker process importing the script again (how processes start: "spawn"),
+        # whose top-level code starts a cluster: it would wait for its own workers forever
+        raise RuntimeError("qdrefine: the script starts a local Dask cluster when it is "
+                           "imported, and Dask's worker processes import it again (each "
+                           "would start a cluster of its own): put the script's code under "
+                           "'if __name__ == \"__main__\":' (docs/scale-out.md)")
     # any free port (the link is printed), so that two runs side by side do not fight over
     # Dask's default 8787; without bokeh the HTTP server still serves health checks
     cluster_kwargs.setdefault("dashboard_address", ":0")
