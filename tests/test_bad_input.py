@@ -1047,3 +1047,19 @@ def test_names_and_shapes_a_format_cannot_hold(tmp_path):
         qdrefine.write(tmp_path / "e.msh", square.replace(
             point_data={"q$EndQdrefineData": np.zeros(n)}))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.vtu"]
+
+
+@pytest.mark.parametrize("ext", [".mesh", ".obj", ".stl"])
+def test_what_meshio_makes_up_for_formats_without_data_is_not_read(tmp_path, ext):
+    """Medit's vertex references, OBJ's group ids and STL's facet normals came back as
+    point or cell data (and went on into .msh files) from formats documented to hold
+    none (docs review, 2026-11-27)."""
+    import warnings
+
+    mesh = examples.jittered_square(3, 0, 0.0, "all")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the tags and edges these formats drop
+        qdrefine.write(tmp_path / f"m{ext}", mesh)
+    back = qdrefine.read(tmp_path / f"m{ext}")
+    assert dict(back.point_data) == {} and dict(back.cell_data) == {}
+    assert back.n_triangles == mesh.n_triangles

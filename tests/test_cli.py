@@ -225,6 +225,7 @@ def test_bad_input_through_the_entry_point(tmp_path):
     (["frobnicate"], "invalid choice: 'frobnicate'"),
     (["plot", "IN.msh", "p.png", "--dpi", "0"], "expected 10 to 2000, got 0"),
     (["check", "IN.msh", "--min-angle", "100"], "expected degrees above 0 and at most 60"),
+    (["diagram", "--tol", "abc"], "argument --tol: invalid float value: 'abc'"),  # 2 lines
     (["plot", "IN.msh", "p.png", "--color", "tag"], "IN.msh: no cell tags to colour by"),
     (["demo", "--afem", "--levels", "2"], "--levels applies to the plate demo"),
     (["demo", "--cycles", "2"], "--cycles applies to --afem only"),

@@ -24,7 +24,7 @@ HELP = "refine a built-in example (plate with a hole) with every scheme, write m
 def add_args(parser: argparse.ArgumentParser) -> None:
     _common.setup(parser)
     parser.epilog = ("Writes OUTDIR/plate_with_hole.msh (the example), "
-                     "OUTDIR/plate_with_hole_7t-qd.msh (refined, Gmsh 4.1 with tags and names), "
+                     "OUTDIR/plate_with_hole_7t-qd.msh (refined, Gmsh 4.1 with its tags), "
                      "OUTDIR/plate_with_hole_7t-qd.png (coloured by minimum angle) and "
                      "OUTDIR/report.txt (quality report).")
     parser.add_argument("outdir", metavar="OUTDIR", nargs="?", default="qdrefine-demo",

@@ -6,10 +6,13 @@ import argparse
 import json
 import math
 
+from . import _common
+
 HELP = "areas of the regions of the paper's mapping diagram (exact arcs + quadrature)"
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:
+    _common.setup(parser, quiet=False)  # one-line argument errors; it prints only its table
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--tol", type=float, default=1e-10,
                         help="quadrature tolerance on each area (default 1e-10)")

@@ -36,6 +36,9 @@ __all__ = ["read_with_meshio", "write_with_meshio", "meshio_mesh", "raw_from_mes
 TAG_KEYS = ("gmsh:physical", "medit:ref", "tag", "cell_tags")
 _WRITE_KEY = {"gmsh": "gmsh:physical", "medit": "medit:ref"}
 _SKIP = set(SKIPPED_NAMES)
+#: What meshio's readers of formats without data fields make up (Medit's vertex references,
+#: OBJ's group ids, STL's facet normals): not data of the mesh, not read.
+_READER_FIELDS = {"medit:ref", "obj:group_ids", "facet_normals"}
 
 
 @contextlib.contextmanager
@@ -197,11 +200,12 @@ def _arrays(m) -> tuple:
         if tags[-1] is not None and len(tags[-1]) != len(data):
             raise ValueError(f"{len(tags[-1])} tags for {len(data)} {block.type} cells")
     point_data = {name: _native(v) for name, v in m.point_data.items()
-                  if np.asarray(v).dtype.kind in "biuf" and len(v) == len(points)}
+                  if np.asarray(v).dtype.kind in "biuf" and len(v) == len(points)
+                  and name not in _READER_FIELDS}
     cell_data = {}
     triangles = [i for i, b in enumerate(m.cells) if b.type == "triangle"]
     for name, per_block in m.cell_data.items():
-        if name in TAG_KEYS or name in _SKIP or not triangles:
+        if name in TAG_KEYS or name in _SKIP or name in _READER_FIELDS or not triangles:
             continue
         parts = [_native(per_block[i]) for i in triangles]
         if all(p.dtype.kind in "biuf" for p in parts):
