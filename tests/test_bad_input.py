@@ -1063,3 +1063,17 @@ def test_what_meshio_makes_up_for_formats_without_data_is_not_read(tmp_path, ext
     back = qdrefine.read(tmp_path / f"m{ext}")
     assert dict(back.point_data) == {} and dict(back.cell_data) == {}
     assert back.n_triangles == mesh.n_triangles
+
+
+def test_floats_wider_than_64_bits_are_refused_naming_the_file(tmp_path):
+    """float128 data: VTU failed with a buffer error naming no file, MSH would have stored
+    doubles (docs review, 2026-11-27)."""
+    square = examples.square(2)
+    wide = square.replace(point_data={"q": np.ones(square.n_points, np.longdouble)})
+    if wide.point_data["q"].dtype.itemsize <= 8:
+        return  # a platform whose long double is a double: nothing to refuse
+    for ext in (".vtu", ".msh", ".xdmf", ".vtk"):
+        with pytest.raises(ValueError, match=rf"q\{ext}: data 'q' of dtype float\d+ cannot be "
+                                             "written: files hold integers and floats of up"):
+            qdrefine.write(tmp_path / f"q{ext}", wide)
+    assert not list(tmp_path.iterdir())

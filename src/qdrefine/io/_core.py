@@ -237,6 +237,13 @@ def mesh_data(mesh, path: PathLike | None = None, reserved: tuple[str, ...] = ()
         raise ValueError(f"{where}cell data {clash!r} has a name that readers of this format "
                          "take as the cell tags (it would come back as the tags, or not at "
                          "all); rename it" + (", or write .msh" if path is not None else ""))
+    for data in (mesh.point_data or {}, mesh.cell_data or {}):
+        for name, value in data.items():
+            kind, size = value.dtype.kind, value.dtype.itemsize
+            if kind not in "biuf" or (kind == "f" and size > 8):
+                where = f"{path}: " if path is not None else ""
+                raise ValueError(f"{where}data {name!r} of dtype {value.dtype} cannot be "
+                                 "written: files hold integers and floats of up to 64 bits")
     cell_data = dict(mesh.cell_data or {})
     if mesh.transitions is not None:
         cell_data[TRANSITIONS] = np.asarray(mesh.transitions, dtype=np.int64)

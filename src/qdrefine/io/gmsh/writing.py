@@ -137,7 +137,7 @@ def write(path: Path, mesh, *, binary: bool = False, version: str = "4.1") -> No
     """Write ``mesh`` as Gmsh MSH ``version`` (``"4.1"`` or ``"2.2"``), text or binary."""
     _check_version(path, version)
     _check_tags_and_names(path, mesh)
-    point_data, cell_data = mesh_data(mesh)
+    point_data, cell_data = mesh_data(mesh, path)
     sections = _data_sections(path, mesh, point_data, cell_data, binary)
     _write(path, _InMemory.of_mesh(mesh), binary, version, mesh.physical_names, sections)
 
