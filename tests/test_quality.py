@@ -101,3 +101,47 @@ def test_min_angle_histogram_counts_every_triangle():
     assert quality.min_angle_histogram(p, t)[0][-1] == 1
     with pytest.raises(ValueError, match="bin_width"):
         quality.min_angle_histogram(m, bin_width=0)
+
+
+def test_similarity_classes_are_not_split_by_rounding_noise():
+    """Red refinement makes no new shape, wherever the mesh is: rounding each angle to the
+    nearest multiple of the tolerance split classes whose angles sat near a multiple (the
+    L-shape moved 1e5 counted more classes per level; numbers review, 2026-11-27).
+    Touching cells keep them together, at the origin and far from it; at the origin for
+    the smallest tolerance allowed too (moved 1e5, the points are rounded by about 1e-11,
+    and the angles of these 0.1-sized triangles by about 1e-8 degrees: more than 1e-12)."""
+    mesh = examples.gmsh_mesh("l_shape")
+    for offset, tolerances in ((0.0, (1e-6, 1e-12)), (1e5, (1e-6,)), (5e5, (1e-6,))):
+        moved = Mesh(mesh.points + offset, mesh.triangles)
+        for tolerance in tolerances:
+            counts = [quality.similarity_classes(refine(moved, "4t-red", k),
+                                                 tolerance=tolerance)[0].max() + 1
+                      for k in range(4)]
+            assert counts == [counts[0]] * 4, (offset, tolerance, counts)
+
+
+def test_touching_cells_form_one_class():
+    """Cells of side ``tolerance`` that touch by a corner are one class; two apart are
+    not (an oracle of the rule on hand-made angles)."""
+    from qdrefine.quality import _touching_cells
+
+    cells = np.array([[0, 0], [1, 1], [3, 1], [3, 2], [5, 5]], dtype=np.int64)
+    assert _touching_cells(cells).tolist() == [0, 0, 1, 1, 2]
+
+
+@pytest.mark.parametrize("scale", [1e-90, 1e-81, 1e-40, 1.0, 1e40, 1e90, 4e99])
+def test_ratios_at_every_scale(scale):
+    """2r/R was 0 for triangles of size 1e-81 (4 cross^2 underflowed) and NaN at 1e90 (the
+    product of the lengths overflowed): it is scale-free, like the aspect ratio. An
+    equilateral triangle has exactly 1 for both, never 1 + 1 ulp."""
+    p = np.array([[0.0, 0.0], [1.0, 0.0], [0.3, 0.8]]) * scale
+    a, b, c = 1.0, np.hypot(0.7, 0.8), np.hypot(0.3, 0.8)
+    area = 0.4
+    expected = 16 * area**2 / ((a + b + c) * a * b * c)
+    np.testing.assert_allclose(quality.radius_ratios(p, [[0, 1, 2]]), [expected], rtol=1e-13)
+    np.testing.assert_allclose(quality.aspect_ratios(p, [[0, 1, 2]]),
+                               [np.sqrt(3) * b**2 / (4 * area)], rtol=1e-13)
+    s = np.sqrt(3.0) / 2
+    equilateral = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, s]]) * scale
+    assert quality.radius_ratios(equilateral, [[0, 1, 2]])[0] <= 1.0
+    assert quality.aspect_ratios(equilateral, [[0, 1, 2]])[0] >= 1.0

@@ -19,6 +19,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 if TYPE_CHECKING:  # a Mesh is told by its arrays, so this module needs no import of it
@@ -125,10 +126,20 @@ def radius_ratios(mesh: Mesh | ArrayLike,
     ``A``, ``2 r / R = 16 A^2 / ((a + b + c) a b c)``.
     """
     p, t = _arrays(mesh, triangles)
-    e, cross = _sides(p, t)
+    e, _ = _sides(p, t)
+    # in units of the longest side, so that neither 4 cross^2 (size^4) nor the product of
+    # the lengths underflows or overflows anywhere in the coordinate range (a triangle of
+    # size 1e-81 gave 0, of size 1e90 NaN)
+    scale = np.hypot(e[..., 0], e[..., 1]).max(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        e = e / scale[:, None, None]
+    e = np.where(scale[:, None, None] > 0, e, 0.0)
     lengths = np.hypot(e[..., 0], e[..., 1])
-    # 16 A^2 = 4 cross^2
-    return 4.0 * cross**2 / (lengths.sum(axis=1) * lengths.prod(axis=1))
+    cross = e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0]
+    # 16 A^2 = 4 cross^2; at most 1 exactly (rounding gave 1 + 1 ulp)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = 4.0 * cross**2 / (lengths.sum(axis=1) * lengths.prod(axis=1))
+    return np.minimum(np.nan_to_num(ratio, nan=0.0), 1.0)
 
 
 def aspect_ratios(mesh: Mesh | ArrayLike,
@@ -138,7 +149,8 @@ def aspect_ratios(mesh: Mesh | ArrayLike,
     p, t = _arrays(mesh, triangles)
     e, cross = _sides(p, t)
     lmax2 = (e**2).sum(axis=-1).max(axis=1)
-    return np.sqrt(3.0) * lmax2 / (2.0 * np.abs(cross))
+    with np.errstate(divide="ignore"):
+        return np.maximum(np.sqrt(3.0) * lmax2 / (2.0 * np.abs(cross)), 1.0)  # >= 1 exactly
 
 
 #: Similarity tolerances (degrees) that :func:`similarity_classes` takes: finer ones are
@@ -153,8 +165,12 @@ def similarity_classes(
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Group triangles by shape (similarity, mirror images included).
 
-    Two triangles are in the same class when their smallest and middle interior angles,
-    rounded to a multiple of ``tolerance`` degrees, are equal (the third angle follows).
+    The plane of (smallest, middle) interior angle is cut into square cells of side
+    ``tolerance`` degrees; occupied cells that touch (by a side or a corner) form one class.
+    So triangles whose two angles are within ``tolerance`` of each other's are always in one
+    class (the third angle follows), and rounding noise below ``tolerance`` never splits a
+    shape: rounding to the nearest multiple did, for angles near a cell boundary (4T red
+    refinement of a Gmsh mesh moved 1e5 from the origin went from 1239 to 1321 classes).
 
     Returns
     -------
@@ -169,9 +185,55 @@ def similarity_classes(
                          f"{tolerance!r} (the angles themselves are computed to about 1e-13 "
                          "degrees)")
     a = np.sort(angles(mesh, triangles), axis=1)
-    key = np.round(a[:, :2] / tolerance).astype(np.int64)
-    _, first, labels = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    return labels.reshape(-1).astype(np.int64), a[first]
+    if not len(a):
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
+    key = np.floor(a[:, :2] / tolerance).astype(np.int64)
+    cells, inverse = np.unique(key, axis=0, return_inverse=True)  # sorted lexicographically
+    labels = _touching_cells(cells)[inverse.reshape(-1)]
+    _, first = np.unique(labels, return_index=True)
+    return labels, a[first]
+
+
+@njit(cache=True)
+def _touching_cells(cells: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Component of each of the sorted, distinct ``cells (C, 2)`` under side-or-corner
+    contact, numbered ``0 ..`` in the order of their first cell."""
+    c = cells.shape[0]
+    parent = np.arange(c)
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    def find(x, y):  # binary search for the cell (x, y)
+        lo, hi = 0, c
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if cells[mid, 0] < x or (cells[mid, 0] == x and cells[mid, 1] < y):
+                lo = mid + 1
+            else:
+                hi = mid
+        return lo if lo < c and cells[lo, 0] == x and cells[lo, 1] == y else -1
+
+    for i in range(c):
+        for dx, dy in ((0, 1), (1, -1), (1, 0), (1, 1)):  # the other four by symmetry
+            j = find(cells[i, 0] + dx, cells[i, 1] + dy)
+            if j >= 0:
+                a, b = root(i), root(j)
+                if a != b:
+                    parent[max(a, b)] = min(a, b)
+    labels = np.empty(c, dtype=np.int64)
+    count = 0
+    for i in range(c):
+        r = root(i)
+        if r == i:
+            labels[i] = count
+            count += 1
+        else:
+            labels[i] = labels[r]  # r < i: numbered already
+    return labels
 
 
 def min_angle_histogram(

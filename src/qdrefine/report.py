@@ -34,16 +34,27 @@ def _stats(values: np.ndarray) -> dict[str, float]:
             "mean": float(values.mean()), "median": float(np.median(values))}
 
 
+def _apart(low: float, high: float) -> str:
+    """``low, high`` with 6 significant digits, or as many more as show the interval's
+    width to 6 digits (a disk of radius 1 at 1e8 showed [1e+08, 1e+08])."""
+    for digits in range(6, 18):
+        a, b = f"{low:.{digits}g}", f"{high:.{digits}g}"
+        if max(abs(float(a) - low), abs(float(b) - high)) <= 1e-6 * (high - low):
+            break
+    return f"{a}, {b}"
+
+
 def info(mesh: Mesh) -> dict[str, Any]:
     """Counts, bounding box, area, tags, conformity, orientation and angle figures."""
-    p = mesh.points
+    used = np.unique(mesh.triangles)
+    p = mesh.points[used] if used.size else mesh.points  # the triangles' extent
     area = q.areas(mesh)
     conf = conformity(mesh)
     mins = q.min_angles(mesh)
     out: dict[str, Any] = {
         "points": mesh.n_points,
         "triangles": mesh.n_triangles,
-        "unused_points": int(mesh.n_points - np.unique(mesh.triangles).size),
+        "unused_points": int(mesh.n_points - used.size),
         "boundary_edges": int(len(boundary_edges(mesh))),
         "euler_characteristic": euler_characteristic(mesh),
         "bounding_box": {"xmin": float(p[:, 0].min()), "ymin": float(p[:, 1].min()),
@@ -196,8 +207,8 @@ def format_info(d: dict[str, Any]) -> str:
         f"triangles             {d['triangles']}",
         f"boundary edges        {d['boundary_edges']}",
         f"Euler characteristic  {d['euler_characteristic']}",
-        f"bounding box          [{b['xmin']:.6g}, {b['xmax']:.6g}] x "
-        f"[{b['ymin']:.6g}, {b['ymax']:.6g}]",
+        f"bounding box          [{_apart(b['xmin'], b['xmax'])}] x "
+        f"[{_apart(b['ymin'], b['ymax'])}] (of the triangles)",
         f"area                  {d['area']:.10g}",
         f"orientation           "
         f"{'all counter-clockwise' if d['counter_clockwise'] else 'NOT all counter-clockwise'}",

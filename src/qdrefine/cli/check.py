@@ -89,8 +89,9 @@ def format_report(report: dict[str, Any]) -> str:
                          "numbers" if report.get("numbered_by") == "file" else
                          f"points and triangles numbered from {report.get('numbered_from', 0)}"
                          " in the order of the file"))
-    for p in report["problems"]:
-        lines.append(f"{p['severity']:8} {p['kind']:17} {p['count']:>8}  {p['message']}")
+    width = max((len(p["kind"]) for p in report["problems"]), default=0)
+    for p in report["problems"]:  # the widest kind sets the column (near-duplicate-points)
+        lines.append(f"{p['severity']:8} {p['kind']:{width}} {p['count']:>8}  {p['message']}")
     verdict = "usable" if report["usable"] else "NOT usable"
     lines.append(f"{report['file']}: {verdict} ({_common.counted(report['errors'], 'error')}, "
                  f"{_common.counted(report['warnings'], 'warning')})")
