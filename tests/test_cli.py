@@ -328,3 +328,16 @@ def test_scheme_lists_take_spaces_and_count_each_scheme_once(tmp_path, capsys):
                  "7t-qd, 4t-le", "7t-qd", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert [r["scheme"] for r in report["rows"] if r["level"] == 0] == ["7t-qd", "4t-le"]
+
+
+def test_info_bounding_box_is_the_triangles_and_readable_far_away(tmp_path, capsys):
+    """It took unused points in (a lone Gmsh point at (5, 5) beside a unit square) and
+    printed a unit disk at 1e8 as [1e+08, 1e+08] (numbers review, 2026-11-27)."""
+    square = examples.square(1)
+    points = np.vstack([square.points + 1e8, [[5e8, 5e8]]])
+    qdrefine.write(tmp_path / "far.vtu", qdrefine.Mesh(points, square.triangles))
+    assert main(["info", str(tmp_path / "far.vtu")]) == 0
+    out = capsys.readouterr().out
+    assert "bounding box          [100000000, 100000001] x [100000000, 100000001] (of the " \
+           "triangles)" in out
+    assert "(1 unused)" in out
