@@ -156,6 +156,10 @@ def _rim_to_grow(mesh: Mesh, start: NDArray[np.int64], tris_of: NDArray[np.int64
     the step changed (:func:`~qdrefine.adaptive.rounds.waiting_upgrades`: the whole mesh's
     step upgrades them, while the window's does not see them)."""
     triangles = mesh.triangles
+    if not (fam.n_families and sch.stencil.per_edge == 2):  # only split rim edges matter
+        out = np.zeros(window.shape[0], dtype=bool)
+        _across_split(triangles, start, tris_of, window, split_keys, out)
+        return out
     rows = np.flatnonzero(window)
     t = triangles[rows].astype(np.int64)
     a, b = t.reshape(-1), np.roll(t, -1, axis=1).reshape(-1)
@@ -177,6 +181,28 @@ def _rim_to_grow(mesh: Mesh, start: NDArray[np.int64], tris_of: NDArray[np.int64
         waiting = waiting_upgrades(mesh.points, fam, fam.member[outer[idx]], once[idx], sch)
         out[outer[idx[waiting]]] = True
     return out
+
+
+@njit(cache=True)
+def _across_split(triangles, start, tris_of, window, keys, out):
+    """``out[u] = True`` for every triangle ``u`` outside the window across a rim edge
+    that is split (``keys``: the split edges' keys; those between two of the mesh's points
+    are looked up in the vertex-to-triangle table, in key order)."""
+    n = start.shape[0] - 1
+    for e in range(keys.shape[0]):
+        a, b = keys[e] // KEY, keys[e] % KEY
+        if b >= n:  # a new point: not an edge of the mesh
+            continue
+        inside, outside = False, -1
+        for s in range(start[a], start[a + 1]):
+            t = tris_of[s]
+            if triangles[t, 0] == b or triangles[t, 1] == b or triangles[t, 2] == b:
+                if window[t]:
+                    inside = True
+                else:
+                    outside = t
+        if inside and outside >= 0:
+            out[outside] = True
 
 
 @njit(cache=True)
