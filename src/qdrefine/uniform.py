@@ -79,7 +79,8 @@ def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
 
 def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: NDArray[np.float64],
                    children: NDArray, k: int, parents: NDArray[np.int64] | None = None,
-                   everywhere: bool = False, suspect: NDArray[np.bool_] | None = None) -> None:
+                   everywhere: bool = False, suspect: NDArray[np.bool_] | None = None,
+                   rows: NDArray[np.int64] | None = None) -> None:
     """Raise ``ValueError`` when rounding the new points to float64 flattened or inverted a
     child.
 
@@ -105,7 +106,14 @@ def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: 
         a coarsened family's children are not on its first member's lattice).
     suspect : (M,) bool, optional
         :func:`kernels.rounding_suspects` if already known (:func:`kernels.emit` returns it).
+    rows : (R,) int64, optional
+        With ``parents``: the children to check exactly, increasing (those of the suspect
+        parents, when the caller knows them without a pass over every child).
     """
+    if rows is not None and parents is not None:
+        if rows.size:
+            _check_children(points, triangles, new_points, children, rows, parents[rows])
+        return
     if everywhere:
         suspect = np.ones(triangles.shape[0], dtype=bool)
     elif suspect is None:
@@ -118,6 +126,13 @@ def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: 
     else:
         rows = np.flatnonzero(suspect[parents])
         parents = parents[rows]
+    _check_children(points, triangles, new_points, children, rows, parents)
+
+
+def _check_children(points: NDArray[np.float64], triangles: NDArray,
+                    new_points: NDArray[np.float64], children: NDArray,
+                    rows: NDArray[np.int64], parents: NDArray[np.int64]) -> None:
+    """:func:`check_rounding` of the children ``rows`` (their parents ``parents``)."""
     signs = orient_signs(new_points, np.ascontiguousarray(children[rows]))
     bad = np.flatnonzero(signs <= 0)
     if bad.size:

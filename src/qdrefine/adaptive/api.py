@@ -102,22 +102,27 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
         mask = mask[order]
     fam_mask = np.zeros(fam.n_families, dtype=bool)
     _check_least_memory(work, mask & (fam.member < 0), sch, levels)
-    parents = np.arange(mesh.n_triangles, dtype=np.int64) if order is None else order
-    point_map = np.arange(mesh.n_points, dtype=np.int64)  # input point ids -> output's
+    parents = order  # None: the identity
+    point_map = None  # input point ids -> output's, None: the identity
     out = work
-    for _ in range(levels):
+    for level in range(levels):
         if not (mask.any() or fam_mask.any()):
             break
         res = windowed_step(out, mask, fam_mask, sch, fam)
-        check_rounding(out.points, out.triangles, res.mesh.points, res.mesh.triangles, k,
-                       res.parents, suspect=_changed(out, res))
+        if res.changed_rows is None:
+            check_rounding(out.points, out.triangles, res.mesh.points, res.mesh.triangles,
+                           k, res.parents, suspect=_changed(out, res))
+        else:
+            check_rounding(out.points, out.triangles, res.mesh.points, res.mesh.triangles,
+                           k, res.parents, rows=res.changed_rows)
         out, fam, new_id = _finished(out, res)
-        parents = parents[res.parents]
+        parents = res.parents if parents is None else parents[res.parents]
         if new_id is not None:
-            point_map = new_id[point_map]
-        mask = res.inside & (fam.member < 0)
-        fam_mask = np.zeros(fam.n_families, dtype=bool)
-        fam_mask[fam.member[res.inside & (fam.member >= 0)]] = True
+            point_map = new_id[:mesh.n_points] if point_map is None else new_id[point_map]
+        if level + 1 < levels:  # the marks of the next level
+            mask = res.inside & (fam.member < 0)
+            fam_mask = np.zeros(fam.n_families, dtype=bool)
+            fam_mask[fam.member[res.inside & (fam.member >= 0)]] = True
     if out is work:
         return mesh, np.arange(mesh.n_triangles, dtype=np.int64)
     return with_history(out, fam, _origins(origin_rows(mesh), parents, point_map)), parents
@@ -129,6 +134,8 @@ def origin_rows(mesh: Mesh) -> NDArray[np.int64]:
     works on: a transition's centroid can go, its parent's corners stay)."""
     if mesh.origins is not None:
         return mesh.origins
+    if mesh.transitions is None:
+        return mesh.triangles  # read as they are (int32 or int64)
     rows = mesh.triangles.astype(np.int64)
     if mesh.transitions is not None:
         green = mesh.transitions[:, 0] >= 0
@@ -136,14 +143,18 @@ def origin_rows(mesh: Mesh) -> NDArray[np.int64]:
     return rows
 
 
-def _origins(rows: NDArray[np.int64], parents: NDArray[np.int64],
-             point_map: NDArray[np.int64]) -> NDArray[np.int64]:
+def _origins(rows: NDArray[np.integer], parents: NDArray[np.int64],
+             point_map: NDArray[np.int64] | None) -> NDArray[np.int64]:
     """``point_map[rows[parents]]``, ``(M', 3) int64``: each output triangle's origin row
     (:func:`origin_rows` of the input, ``rows (M, 3)``) in output point ids (one compiled
-    pass; NumPy's two fancy-index passes took a tenth of a scattered step)."""
+    pass; NumPy's two fancy-index passes took a tenth of a scattered step); ``point_map``
+    None: the ids are kept."""
     out = np.empty((parents.shape[0], 3), dtype=np.int64)
     with threads_for(parents.shape[0]):
-        _gather_origins(rows, parents, point_map, out)
+        if point_map is None:
+            _gather_rows(rows, parents, out)
+        else:
+            _gather_origins(rows, parents, point_map, out)
     if out.size and out.min() < 0:  # only where given origins name a removed centroid
         r = int(np.flatnonzero((out < 0).any(axis=1))[0])
         raise ValueError(f"origins: the row of input triangle {int(parents[r])} names the "
@@ -159,6 +170,14 @@ def _gather_origins(rows, parents, point_map, out):
         p = parents[r]
         for j in range(3):
             out[r, j] = point_map[rows[p, j]]
+
+
+@njit(parallel=True, cache=True)
+def _gather_rows(rows, parents, out):
+    for r in prange(parents.shape[0]):
+        p = parents[r]
+        for j in range(3):
+            out[r, j] = rows[p, j]
 
 
 def _changed(before: Mesh, res: Step) -> NDArray[np.bool_]:

@@ -61,11 +61,25 @@ class Families:
                              "two or more consecutive members")
 
     @classmethod
+    def trusted(cls, member: NDArray[np.int64], parent_triangles: NDArray[np.int64],
+                stencil: NDArray[np.int64]) -> Families:
+        """Families from arrays known to be valid (int64, ``(M,)``, ``(F, 3)``, ``(F, S)``,
+        members consecutive: made by the step's own passes), without the checks' passes
+        over every triangle; the arrays are made read-only."""
+        out = object.__new__(cls)
+        for name, value in (("member", member), ("parent_triangles", parent_triangles),
+                            ("stencil", stencil)):
+            value = np.asarray(value, dtype=np.int64)
+            value.flags.writeable = False
+            object.__setattr__(out, name, value)
+        return out
+
+    @classmethod
     def empty(cls, n_triangles: int, per_edge: int) -> Families:
         """No transition children among ``n_triangles``."""
         width = len(pattern_stencil(per_edge).names)
-        return cls(np.full(n_triangles, -1, dtype=np.int64), np.empty((0, 3), np.int64),
-                   np.empty((0, width), np.int64))
+        return cls.trusted(np.full(n_triangles, -1, dtype=np.int64),
+                           np.empty((0, 3), np.int64), np.empty((0, width), np.int64))
 
     @property
     def per_edge(self) -> int:

@@ -11,9 +11,10 @@ applied to the parent's vertices, so they are matched exactly.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import NDArray
 
+from ..jit import threads_for
 from ..mesh import Mesh
 from .edgekeys import oriented
 from .families import Families, family_spans
@@ -101,7 +102,8 @@ def with_history(mesh: Mesh, families: Families, origins: NDArray | None = None)
     rows = None
     if families.n_families:
         rows = np.empty((member.size, 3), dtype=np.int64)
-        _parent_rows(member, families.parent_triangles, rows)
+        with threads_for(member.size):
+            _parent_rows(member, families.parent_triangles, rows)
     out = Mesh._trusted(mesh.points, mesh.triangles, mesh.cell_tags, mesh.edges,
                         mesh.edge_tags, mesh.point_data, mesh.cell_data,
                         mesh.physical_names, rows, origins=origins)
@@ -109,7 +111,8 @@ def with_history(mesh: Mesh, families: Families, origins: NDArray | None = None)
         # what families_of would rebuild from the rows (their rotation included), kept for
         # the next call on this mesh: rebuilding took 0.21 s of a 2 s scattered second
         # cycle on the 864k L-shape (docs/adaptive.md, "Cost")
-        kept = Families(member, _rotated(families.parent_triangles), families.stencil)
+        kept = Families.trusted(member, _rotated(families.parent_triangles),
+                                families.stencil)
         object.__setattr__(out, "_families", kept)
     return out
 
@@ -126,10 +129,10 @@ def _kept_families(mesh: Mesh, k: int) -> Families | None:
     return kept
 
 
-@njit(cache=True)
+@njit(parallel=True, cache=True)
 def _parent_rows(member, parent_triangles, rows):
     """``rows[t]``: the parent row of member ``t``'s family, ``-1`` for other triangles."""
-    for t in range(member.shape[0]):
+    for t in prange(member.shape[0]):
         f = member[t]
         for j in range(3):
             rows[t, j] = parent_triangles[f, j] if f >= 0 else -1

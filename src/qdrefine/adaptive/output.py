@@ -175,7 +175,9 @@ def _families(rows: NDArray[np.int64], start: NDArray[np.int64], nk: NDArray[np.
     items, parent, sten = items[order], parent[order], sten[order]
     member = np.full(int(start[-1]), -1, dtype=np.int64)
     _fill_members(start, nk, items, member)
-    return Families(member, parent.reshape(-1, 3), sten.reshape(-1, old.stencil.shape[1]))
+    # valid by construction: each family's members are its triangle's consecutive children
+    return Families.trusted(member, parent.reshape(-1, 3),
+                            sten.reshape(-1, old.stencil.shape[1]))
 
 
 @njit(cache=True)
@@ -207,7 +209,8 @@ def without_points(mesh: Mesh, fam: Families, keep: NDArray[np.bool_],
     out = Mesh._trusted(mesh.points[keep], new_id[mesh.triangles].astype(dtype),
                         mesh.cell_tags, edges, edge_tags, point_data, mesh.cell_data,
                         mesh.physical_names)
-    return out, Families(fam.member, new_id[fam.parent_triangles], new_id[fam.stencil]), \
+    return out, Families.trusted(fam.member, new_id[fam.parent_triangles],
+                                 new_id[fam.stencil]), \
         new_id
 
 

@@ -38,6 +38,9 @@ class Step:
         triangle uses any more belong to coarsened transitions and are to be removed.
     split_keys : (R,) int64 and split_points : (R, k) int64
         Every edge that has points (edge keys, sorted) and its points from the lower id.
+    changed_rows : (C,) int64 or None
+        The output triangles whose parent's output is not the parent itself, increasing,
+        where known (a window's step); None: found from ``parents``.
     """
 
     mesh: Mesh
@@ -47,6 +50,7 @@ class Step:
     centroids: NDArray[np.int64]
     split_keys: NDArray[np.int64]
     split_points: NDArray[np.int64]
+    changed_rows: NDArray[np.int64] | None = None
 
 
 def step(mesh: Mesh, marked: NDArray[np.bool_], fam_marked: NDArray[np.bool_], sch: Scheme,

@@ -29,7 +29,7 @@ from ..mesh import Mesh, index_dtype
 from ..numbering import incidence
 from ..schemes import Scheme
 from .edgekeys import KEY, edge_keys, lookup
-from .families import Families, family_spans
+from .families import Families
 from .output import changed_parents
 from .reach import reached_triangles
 from .rounds import waiting_upgrades
@@ -230,85 +230,115 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     sub = res.mesh
     n_sub = verts.size
     rows = np.flatnonzero(window)
-    count = np.ones(mesh.n_triangles, dtype=np.int64)
     if res.parents.size > 1 and (res.parents[1:] < res.parents[:-1]).any():
         # _place_window takes each window triangle's children as one run, in order
         raise RuntimeError("internal error: the window's step listed its children out of "
                            "parent order")
     per_row = np.bincount(res.parents, minlength=rows.size)
-    count[rows] = per_row
     sub_first = np.concatenate([[0], np.cumsum(per_row)])
-    first = np.cumsum(count) - count
-    total = int(count.sum())
+    first = np.empty(mesh.n_triangles, dtype=np.int64)  # output row of each triangle's first
+    total = _output_rows(window, per_row, first)
     check_needed(local_memory_needed(n_output=total),
                  f"local refinement: emitting {total} triangles")
-    keep = np.flatnonzero(~window)
+    # families: the untouched ones keep their members, the window's come from the step,
+    # all numbered by first member (the window holds whole families: a family's members
+    # are all outside or all inside, and the outside ones keep their order)
+    new_fam = res.families
+    old = np.empty(0, dtype=np.int64)
+    old_first = old
+    if fam.n_families:
+        fam_first = fam.first()
+        old = np.flatnonzero(~window[fam_first])
+        old_first = first[fam_first[old]]
+    sub_head = new_fam.first()
+    new_first = first[rows[res.parents[sub_head]]] - sub_first[res.parents[sub_head]] \
+        + sub_head
+    ids = np.concatenate([old, fam.n_families + np.arange(new_fam.n_families)])
+    order = np.argsort(np.concatenate([old_first, new_first]), kind="stable")
+    renum = np.full(fam.n_families + new_fam.n_families, -1, dtype=np.int64)
+    renum[ids[order]] = np.arange(ids.size)
+    rows_all = np.concatenate([fam.parent_triangles[old],
+                               to_global[new_fam.parent_triangles]])
+    sten_all = np.concatenate([fam.stencil[old],
+                               np.where(new_fam.stencil >= 0,
+                                        to_global[np.maximum(new_fam.stencil, 0)], -1)])
+
     parents = np.empty(total, dtype=np.int64)
     points = np.concatenate([mesh.points, sub.points[n_sub:]])
     dtype = index_dtype(points.shape[0])
     tris = np.empty((total, 3), dtype=dtype)
-    member = np.full(total, -1, dtype=np.int64)
+    member = np.empty(total, dtype=np.int64)
+    inside = np.empty(total, dtype=bool)
     out_rows = np.empty(sub.n_triangles, dtype=np.int64)
     with threads_for(mesh.n_triangles):
-        _copy_outside(window, first, mesh.triangles, fam.member, tris, parents, member)
-        _place_window(first, rows, sub_first, sub.triangles, to_global,
-                      res.families.member, fam.n_families, tris, parents, member, out_rows)
+        _copy_outside(window, first, mesh.triangles, fam.member, renum, tris, parents,
+                      member, inside)
+        _place_window(first, rows, sub_first, sub.triangles, to_global, new_fam.member,
+                      renum[fam.n_families:], res.inside, tris, parents, member, inside,
+                      out_rows)
     tags = None
     if mesh.cell_tags is not None:
         tags = mesh.cell_tags[parents]
     cell_data = {}
-    for name, v in mesh.cell_data.items():
-        c = np.empty((total,) + v.shape[1:], dtype=v.dtype)
-        c[first[keep]] = v[keep]
-        c[out_rows] = sub.cell_data[name]
-        cell_data[name] = c
+    if mesh.cell_data:
+        keep = np.flatnonzero(~window)
+        for name, v in mesh.cell_data.items():
+            c = np.empty((total,) + v.shape[1:], dtype=v.dtype)
+            c[first[keep]] = v[keep]
+            c[out_rows] = sub.cell_data[name]
+            cell_data[name] = c
     point_data = {name: np.concatenate([v.astype(sub.point_data[name].dtype, copy=False),
                                         sub.point_data[name][n_sub:]])
                   for name, v in mesh.point_data.items()}
     out = Mesh._trusted(points, tris, tags, None, None, point_data, cell_data,
                         mesh.physical_names)
-    # families: the untouched ones keep their members (copied above), the window's come
-    # from the step
-    outside = fam.member[keep]
-    old = np.unique(outside[outside >= 0])
-    ids = np.concatenate([old, fam.n_families + np.arange(res.families.n_families)])
-    rows_all = np.concatenate([fam.parent_triangles[old], to_global[res.families.parent_triangles]])
-    sten_all = np.concatenate([fam.stencil[old],
-                               np.where(res.families.stencil >= 0,
-                                        to_global[np.maximum(res.families.stencil, 0)], -1)])
-    present = member >= 0
-    first_of = family_spans(member, fam.n_families + res.families.n_families)[0]
-    order = np.argsort(first_of[ids], kind="stable")
-    renum = np.full(first_of.size, -1, dtype=np.int64)
-    renum[ids[order]] = np.arange(ids.size)
-    member[present] = renum[member[present]]
-    families = Families(member, rows_all[order], sten_all[order])
-    inside = np.zeros(total, dtype=bool)
-    inside[out_rows] = res.inside
-    return Step(out, parents, families, inside, to_global[res.centroids], *registry)
+    families = Families.trusted(member, rows_all[order], sten_all[order])
+    # the children of the changed window triangles (checked for rounding exactly)
+    changed = changed_parents(res.parents, sub.triangles, mesh.triangles[rows], to_global)
+    return Step(out, parents, families, inside, to_global[res.centroids], *registry,
+                out_rows[changed[res.parents]])
+
+
+@njit(cache=True)
+def _output_rows(window, per_row, first):
+    """``first[t]``: the output row of triangle ``t``'s first child (one row for a triangle
+    outside the window, ``per_row[p]`` for the ``p``-th window triangle); the total."""
+    r = 0
+    p = 0
+    for t in range(window.shape[0]):
+        first[t] = r
+        if window[t]:
+            r += per_row[p]
+            p += 1
+        else:
+            r += 1
+    return r
 
 
 @njit(parallel=True, cache=True)
-def _copy_outside(window, first, triangles, member, tris, parents, member_out):
+def _copy_outside(window, first, triangles, member, renum, tris, parents, member_out,
+                  inside):
     """Each triangle outside the window to its output row ``first[t]``: its vertex row,
-    itself as parent, its family (one parallel pass; most of the mesh when marks are
-    scattered)."""
+    itself as parent, its family renumbered by ``renum`` (one parallel pass; most of the
+    mesh when marks are scattered)."""
     for t in prange(window.shape[0]):
         if not window[t]:
             r = first[t]
             for j in range(3):
                 tris[r, j] = triangles[t, j]
             parents[r] = t
-            member_out[r] = member[t]
+            f = member[t]
+            member_out[r] = renum[f] if f >= 0 else -1
+            inside[r] = False
 
 
 @njit(parallel=True, cache=True)
-def _place_window(first, rows, sub_first, sub_triangles, to_global, sub_member, n_fam,
-                  tris, parents, member, out_rows):
+def _place_window(first, rows, sub_first, sub_triangles, to_global, sub_member, renum,
+                  sub_inside, tris, parents, member, inside, out_rows):
     """The output triangles ``sub_first[p] .. sub_first[p + 1] - 1`` of the window's step
     (the children of window triangle ``p``, its parents being increasing) to the rows from
-    ``first[rows[p]]`` on: their vertices in global ids, their parent, their family after
-    the untouched ones (parallel over the window's triangles)."""
+    ``first[rows[p]]`` on: their vertices in global ids, their parent, their family
+    renumbered by ``renum``, their inside flag (parallel over the window's triangles)."""
     for p in prange(rows.shape[0]):
         r = first[rows[p]] - sub_first[p]
         for i in range(sub_first[p], sub_first[p + 1]):
@@ -316,7 +346,9 @@ def _place_window(first, rows, sub_first, sub_triangles, to_global, sub_member, 
             for j in range(3):
                 tris[r + i, j] = to_global[sub_triangles[i, j]]
             parents[r + i] = rows[p]
-            member[r + i] = n_fam + sub_member[i] if sub_member[i] >= 0 else -1
+            f = sub_member[i]
+            member[r + i] = renum[f] if f >= 0 else -1
+            inside[r + i] = sub_inside[i]
 
 
 def _global_registry(res: Step, to_global: NDArray[np.int64]
