@@ -49,8 +49,10 @@ refuse other coordinates with a clear error (see :func:`check_coordinates`).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, types
+from numba import njit, prange, types
 from numba.extending import intrinsic
+
+from .jit import CHUNK, threads_for
 
 __all__ = [
     "COORDINATE_RANGE",
@@ -64,6 +66,7 @@ __all__ = [
     "new_scratch",
     "orient_sign",
     "orient_signs",
+    "orient_signs_of_rows",
     "product_sign",
 ]
 
@@ -260,6 +263,27 @@ def orient_sign(ax, ay, bx, by, cx, cy, buf):
         return -1
     _differences(ax, ay, bx, by, cx, cy, buf)
     return _exact_sign(_ORIENT_I, _ORIENT_J, _ORIENT_C, 2, buf)
+
+
+def orient_signs_of_rows(points, triangles, rows):
+    """:func:`orient_signs` of the rows ``rows (R,)`` of ``triangles``, ``(R,) int8``, in
+    parallel over blocks of rows (no copy of the rows)."""
+    out = np.empty(rows.shape[0], dtype=np.int8)
+    with threads_for(rows.shape[0]):
+        _orient_rows(points, triangles, rows, CHUNK, out)
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _orient_rows(points, triangles, rows, chunk, out):
+    n = rows.shape[0]
+    for c in prange((n + chunk - 1) // chunk):
+        buf = np.empty(SCRATCH)
+        for i in range(c * chunk, min(n, (c + 1) * chunk)):
+            t = rows[i]
+            a, b, d = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+            out[i] = orient_sign(points[a, 0], points[a, 1], points[b, 0], points[b, 1],
+                                 points[d, 0], points[d, 1], buf)
 
 
 @njit(cache=True)

@@ -13,7 +13,7 @@ from .kernels import emit, rounding_suspects
 from .memory import check_memory
 from .mesh import Mesh, edge_ids, index_dtype
 from .numbering import EdgeBuckets, bucket_points, sort_edges
-from .predicates import orient_signs
+from .predicates import orient_signs, orient_signs_of_rows
 from .schemes import Scheme
 
 __all__ = ["RefusedTriangle", "refine_uniform", "refine_arrays", "check_rounding", "refused",
@@ -133,7 +133,7 @@ def _check_children(points: NDArray[np.float64], triangles: NDArray,
                     new_points: NDArray[np.float64], children: NDArray,
                     rows: NDArray[np.int64], parents: NDArray[np.int64]) -> None:
     """:func:`check_rounding` of the children ``rows`` (their parents ``parents``)."""
-    signs = orient_signs(new_points, np.ascontiguousarray(children[rows]))
+    signs = orient_signs_of_rows(new_points, children, rows)
     bad = np.flatnonzero(signs <= 0)
     if bad.size:
         i = int(parents[bad[0]])

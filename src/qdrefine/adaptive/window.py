@@ -270,12 +270,13 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
     member = np.empty(total, dtype=np.int64)
     inside = np.empty(total, dtype=bool)
     out_rows = np.empty(sub.n_triangles, dtype=np.int64)
+    changed = np.empty(rows.size, dtype=bool)
     with threads_for(mesh.n_triangles):
         _copy_outside(window, first, mesh.triangles, fam.member, renum, tris, parents,
                       member, inside)
         _place_window(first, rows, sub_first, sub.triangles, to_global, new_fam.member,
-                      renum[fam.n_families:], res.inside, tris, parents, member, inside,
-                      out_rows)
+                      renum[fam.n_families:], res.inside, mesh.triangles, tris, parents,
+                      member, inside, out_rows, changed)
     tags = None
     if mesh.cell_tags is not None:
         tags = mesh.cell_tags[parents]
@@ -294,7 +295,6 @@ def _stitched(mesh: Mesh, window: NDArray[np.bool_], verts: NDArray[np.int64],
                         mesh.physical_names)
     families = Families.trusted(member, rows_all[order], sten_all[order])
     # the children of the changed window triangles (checked for rounding exactly)
-    changed = changed_parents(res.parents, sub.triangles, mesh.triangles[rows], to_global)
     return Step(out, parents, families, inside, to_global[res.centroids], *registry,
                 out_rows[changed[res.parents]])
 
@@ -334,21 +334,26 @@ def _copy_outside(window, first, triangles, member, renum, tris, parents, member
 
 @njit(parallel=True, cache=True)
 def _place_window(first, rows, sub_first, sub_triangles, to_global, sub_member, renum,
-                  sub_inside, tris, parents, member, inside, out_rows):
+                  sub_inside, triangles, tris, parents, member, inside, out_rows, changed):
     """The output triangles ``sub_first[p] .. sub_first[p + 1] - 1`` of the window's step
     (the children of window triangle ``p``, its parents being increasing) to the rows from
     ``first[rows[p]]`` on: their vertices in global ids, their parent, their family
-    renumbered by ``renum``, their inside flag (parallel over the window's triangles)."""
+    renumbered by ``renum``, their inside flag; ``changed[p]``: whether they are not the
+    triangle itself, ``triangles[rows[p]]`` (parallel over the window's triangles)."""
     for p in prange(rows.shape[0]):
         r = first[rows[p]] - sub_first[p]
+        same = sub_first[p + 1] - sub_first[p] == 1
         for i in range(sub_first[p], sub_first[p + 1]):
             out_rows[i] = r + i
             for j in range(3):
-                tris[r + i, j] = to_global[sub_triangles[i, j]]
+                v = to_global[sub_triangles[i, j]]
+                tris[r + i, j] = v
+                same = same and v == triangles[rows[p], j]
             parents[r + i] = rows[p]
             f = sub_member[i]
             member[r + i] = renum[f] if f >= 0 else -1
             inside[r + i] = sub_inside[i]
+        changed[p] = not same
 
 
 def _global_registry(res: Step, to_global: NDArray[np.int64]

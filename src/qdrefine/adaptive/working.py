@@ -121,13 +121,14 @@ def expand(tree: Tree, nodes: NDArray[np.int64], sch: Scheme) -> NDArray[np.int6
 def with_edge_points(points: NDArray[np.float64], edges: NDArray, k: int
                      ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """``points`` followed by the ``k`` points of each edge ``(a, b)``, ``a < b`` (the
-    kernel's formula, so both neighbours of an edge get the same values), computed on the
-    edges' endpoints only; and the new points' ids ``(E, k)``, from ``a``."""
-    ends, local = np.unique(np.asarray(edges, dtype=np.int64), return_inverse=True)
-    sub = np.empty((ends.size + k * edges.shape[0], 2))
-    edge_points(points[ends], local.reshape(-1, 2), k, sub)
+    kernel's formula, so both neighbours of an edge get the same values), in one compiled
+    pass; and the new points' ids ``(E, k)``, from ``a``."""
+    edges = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
+    out = np.empty((points.shape[0] + k * edges.shape[0], 2))
+    # one pass: the old points copied, the new ones computed from their edge's ends
+    edge_points(np.ascontiguousarray(points, dtype=np.float64), edges, k, out)
     ids = points.shape[0] + k * np.arange(edges.shape[0])[:, None] + np.arange(k)
-    return np.concatenate([points, sub[ends.size:]]), ids
+    return out, ids
 
 
 def emit_full(points: NDArray[np.float64], rows: NDArray[np.int64],
