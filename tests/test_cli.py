@@ -341,3 +341,17 @@ def test_info_bounding_box_is_the_triangles_and_readable_far_away(tmp_path, caps
     assert "bounding box          [100000000, 100000001] x [100000000, 100000001] (of the " \
            "triangles)" in out
     assert "(1 unused)" in out
+
+
+def test_info_says_how_many_triangles_reading_flipped(tmp_path, capsys):
+    """It said "all counter-clockwise" of a file whose triangles were all clockwise (only
+    the warning told; numbers review, 2026-11-27)."""
+    path = tmp_path / "cw.msh"
+    path.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 0 1 0\n"
+                    "3 1 0 0\n4 1 1 0\n$EndNodes\n$Elements\n2\n1 2 2 1 1 1 2 3\n"
+                    "2 2 2 1 1 2 4 3\n$EndElements\n")
+    assert main(["info", str(path)]) == 0
+    assert "orientation           all counter-clockwise (2 clockwise in the file, flipped " \
+           "on reading)" in capsys.readouterr().out
+    assert main(["info", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["flipped_on_reading"] == 2

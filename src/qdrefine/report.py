@@ -211,7 +211,9 @@ def format_info(d: dict[str, Any]) -> str:
         f"[{_apart(b['ymin'], b['ymax'])}] (of the triangles)",
         f"area                  {d['area']:.10g}",
         f"orientation           "
-        f"{'all counter-clockwise' if d['counter_clockwise'] else 'NOT all counter-clockwise'}",
+        f"{'all counter-clockwise' if d['counter_clockwise'] else 'NOT all counter-clockwise'}"
+        + (f" ({d['flipped_on_reading']} clockwise in the file, flipped on reading)"
+           if d.get("flipped_on_reading") else ""),
         f"conforming            {'yes' if d['conforming'] else 'NO'} "
         f"({c['overused_edges']} overused edges, {c['misoriented_edges']} misoriented, "
         f"{c['hanging_nodes']} hanging nodes, {c['duplicate_points']} duplicate points)",

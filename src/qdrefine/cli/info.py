@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from .. import report
-from ..io import read
+from ..io import mesh_of, read_raw
 from . import _common
 
 HELP = "describe a mesh: counts, bounding box, area, tags, conformity, angles"
@@ -19,6 +21,12 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     with _common.session():
-        d = report.info(read(args.input))
+        raw = read_raw(args.input)
+        mesh = mesh_of(raw)  # flips clockwise triangles, with a warning
+        d = report.info(mesh)
+        # what the file holds: the rows reading turned around (same order, same points)
+        rows = np.asarray(raw.triangles)
+        d["flipped_on_reading"] = int((rows != mesh.triangles).any(axis=1).sum()) \
+            if rows.shape == mesh.triangles.shape else 0
         print(_common.dumps(d) if args.json else report.format_info(d))
     return 0
