@@ -15,9 +15,10 @@ HELP = "refine with several schemes level by level: min angle, mean, similarity 
 
 def add_args(parser: argparse.ArgumentParser) -> None:
     _common.setup(parser)
-    parser.epilog = ("Similarity classes: triangles whose two smallest angles agree after "
-                     "rounding to --tolerance degrees have the same shape (mirror images "
-                     "included).")
+    parser.epilog = ("Similarity classes: triangles whose two smallest angles agree to "
+                     "within --tolerance degrees have the same shape (mirror images "
+                     "included; cells of that side in the plane of the two angles, touching "
+                     "cells joined).")
     parser.add_argument("input", metavar="IN", help="mesh file to read")
     parser.add_argument("--levels", type=_common.non_negative, default=2, metavar="N",
                         help="refinement levels (default 2; 7T schemes multiply the triangles "
@@ -62,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
                                  args.tolerance, "rows": rows}))
         elif not args.quiet:
             print(report.format_compare(rows))
-            print(f"similarity classes: two smallest angles equal to {args.tolerance:g} degrees")
+            print(f"similarity classes: two smallest angles within {args.tolerance:g} degrees")
         if args.plot:
             levels = f"{args.levels} level{'s' if args.levels != 1 else ''}"
             _common.note_written(args.plot, f"{len(schemes)} schemes over {levels}", args)
