@@ -343,6 +343,19 @@ def test_info_bounding_box_is_the_triangles_and_readable_far_away(tmp_path, caps
     assert "(1 unused)" in out
 
 
+def test_info_edge_lengths_with_unused_points():
+    """The bounding box's used points were taken for the edge lengths too: a wrong length,
+    or an IndexError, with an unused point below a used one (review of the change)."""
+    from qdrefine import report
+
+    p = np.array([[0, 0], [1, 0], [9, 9], [0, 1], [1, 1]], float)  # point 2 unused
+    mesh = qdrefine.Mesh(p, [[0, 1, 4], [0, 4, 3]], edges=np.array([[0, 1], [3, 0]]),
+                         edge_tags=np.array([1, 2]))
+    d = report.info(mesh)
+    assert d["edge_tags"]["2"]["length"] == 1.0 and d["edge_tags"]["1"]["length"] == 1.0
+    assert d["bounding_box"] == {"xmin": 0.0, "ymin": 0.0, "xmax": 1.0, "ymax": 1.0}
+
+
 def test_info_says_how_many_triangles_reading_flipped(tmp_path, capsys):
     """It said "all counter-clockwise" of a file whose triangles were all clockwise (only
     the warning told; numbers review, 2026-11-27)."""

@@ -47,7 +47,8 @@ def _apart(low: float, high: float) -> str:
 def info(mesh: Mesh) -> dict[str, Any]:
     """Counts, bounding box, area, tags, conformity, orientation and angle figures."""
     used = np.unique(mesh.triangles)
-    p = mesh.points[used] if used.size else mesh.points  # the triangles' extent
+    p = mesh.points
+    box = p[used] if used.size else p  # the triangles' extent (not unused points)
     area = q.areas(mesh)
     conf = conformity(mesh)
     mins = q.min_angles(mesh)
@@ -57,8 +58,8 @@ def info(mesh: Mesh) -> dict[str, Any]:
         "unused_points": int(mesh.n_points - used.size),
         "boundary_edges": int(len(boundary_edges(mesh))),
         "euler_characteristic": euler_characteristic(mesh),
-        "bounding_box": {"xmin": float(p[:, 0].min()), "ymin": float(p[:, 1].min()),
-                         "xmax": float(p[:, 0].max()), "ymax": float(p[:, 1].max())},
+        "bounding_box": {"xmin": float(box[:, 0].min()), "ymin": float(box[:, 1].min()),
+                         "xmax": float(box[:, 0].max()), "ymax": float(box[:, 1].max())},
         "area": float(area.sum()),
         "counter_clockwise": bool((area > 0).all()),
         "conforming": conf.ok,

@@ -51,8 +51,8 @@ def parse(text: bytes, dtype: type, what: str = "a number") -> NDArray:
             except ValueError:
                 raise BadNumber(number, word.decode("utf-8", "replace"),
                                 "an integer" if convert is int else what) from None
-            if convert is int and abs(value) >= 2**63:
-                raise BadNumber(number, word.decode(), "an integer below 2**63")
+            if convert is int and not -(2**63) <= value < 2**63:
+                raise BadNumber(number, word.decode(), "a 64-bit integer")
     if values is not None:  # the limits themselves were written
         return values
     raise BadNumber(1, text[:40].decode("utf-8", "replace"), what)  # not reached in practice

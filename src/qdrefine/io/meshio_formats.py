@@ -37,8 +37,8 @@ TAG_KEYS = ("gmsh:physical", "medit:ref", "tag", "cell_tags")
 _WRITE_KEY = {"gmsh": "gmsh:physical", "medit": "medit:ref"}
 _SKIP = set(SKIPPED_NAMES)
 #: What meshio's readers of formats without data fields make up (Medit's vertex references,
-#: OBJ's group ids, STL's facet normals): not data of the mesh, not read.
-_READER_FIELDS = {"medit:ref", "obj:group_ids", "facet_normals"}
+#: OBJ's group ids, STL's facet normals): not data of the mesh, not read from those formats.
+_READER_FIELDS = {"medit": {"medit:ref"}, "obj": {"obj:group_ids"}, "stl": {"facet_normals"}}
 
 
 @contextlib.contextmanager
@@ -147,7 +147,7 @@ def read_with_meshio(path: Path, meshio_name: str, name: str) -> RawMesh:
     except (Exception, SystemExit) as exc:  # meshio raises many kinds (even exits)
         raise unreadable(path, name, exc) from None
     try:
-        arrays = _arrays(m)
+        arrays = _arrays(m, _READER_FIELDS.get(meshio_name, set()))
     except (TypeError, ValueError, IndexError, KeyError, AttributeError) as exc:
         raise unreadable(path, name, exc) from None  # meshio returned malformed data
     raw = _raw(path, arrays, m.field_data)
@@ -178,10 +178,10 @@ def _names(field_data: dict) -> dict[tuple[int, int], str]:
     return names
 
 
-def _arrays(m) -> tuple:
+def _arrays(m, made_up: set[str] = frozenset()) -> tuple:
     """Points ``(N, d) float64``, cell blocks ``(type, (k, nodes) int)``, their tags, point
-    data and the triangles' cell data, converted from meshio's objects (malformed data
-    raises here)."""
+    data and the triangles' cell data (not the fields named ``made_up``), converted from
+    meshio's objects (malformed data raises here)."""
     points = np.asarray(m.points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] not in (2, 3):
         raise ValueError(f"points must have 2 or 3 coordinates, got shape {points.shape}")
@@ -201,11 +201,11 @@ def _arrays(m) -> tuple:
             raise ValueError(f"{len(tags[-1])} tags for {len(data)} {block.type} cells")
     point_data = {name: _native(v) for name, v in m.point_data.items()
                   if np.asarray(v).dtype.kind in "biuf" and len(v) == len(points)
-                  and name not in _READER_FIELDS}
+                  and name not in made_up}
     cell_data = {}
     triangles = [i for i, b in enumerate(m.cells) if b.type == "triangle"]
     for name, per_block in m.cell_data.items():
-        if name in TAG_KEYS or name in _SKIP or name in _READER_FIELDS or not triangles:
+        if name in TAG_KEYS or name in _SKIP or name in made_up or not triangles:
             continue
         parts = [_native(per_block[i]) for i in triangles]
         if all(p.dtype.kind in "biuf" for p in parts):
