@@ -131,13 +131,11 @@ def radius_ratios(mesh: Mesh | ArrayLike,
     # the lengths underflows or overflows anywhere in the coordinate range (a triangle of
     # size 1e-81 gave 0, of size 1e90 NaN)
     scale = np.hypot(e[..., 0], e[..., 1]).max(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"):  # a point triangle: 0/0, read as 0
         e = e / scale[:, None, None]
-    e = np.where(scale[:, None, None] > 0, e, 0.0)
-    lengths = np.hypot(e[..., 0], e[..., 1])
-    cross = e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0]
-    # 16 A^2 = 4 cross^2; at most 1 exactly (rounding gave 1 + 1 ulp)
-    with np.errstate(invalid="ignore", divide="ignore"):
+        lengths = np.hypot(e[..., 0], e[..., 1])
+        cross = e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0]
+        # 16 A^2 = 4 cross^2; at most 1 exactly (rounding gave 1 + 1 ulp)
         ratio = 4.0 * cross**2 / (lengths.sum(axis=1) * lengths.prod(axis=1))
     return np.minimum(np.nan_to_num(ratio, nan=0.0), 1.0)
 

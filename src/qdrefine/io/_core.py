@@ -231,9 +231,9 @@ def mesh_data(mesh, path: PathLike | None = None, reserved: tuple[str, ...] = ()
     """Point data and cell data of ``mesh`` to write, the history (transitions, origins)
     as cell data; ``ValueError`` naming ``path`` for cell data under a ``reserved`` name
     (the format's names of the tags, :data:`TAG_NAMES`)."""
+    where = f"{path}: " if path is not None else ""
     clash = next((name for name in mesh.cell_data or {} if name in reserved), None)
     if clash is not None:
-        where = f"{path}: " if path is not None else ""
         raise ValueError(f"{where}cell data {clash!r} has a name that readers of this format "
                          "take as the cell tags (it would come back as the tags, or not at "
                          "all); rename it" + (", or write .msh" if path is not None else ""))
@@ -241,7 +241,6 @@ def mesh_data(mesh, path: PathLike | None = None, reserved: tuple[str, ...] = ()
         for name, value in data.items():
             kind, size = value.dtype.kind, value.dtype.itemsize
             if kind not in "biuf" or (kind == "f" and size > 8):
-                where = f"{path}: " if path is not None else ""
                 raise ValueError(f"{where}data {name!r} of dtype {value.dtype} cannot be "
                                  "written: files hold integers and floats of up to 64 bits")
     cell_data = dict(mesh.cell_data or {})

@@ -264,9 +264,7 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False) -> N
     offset = [0]
 
     def item(name: str, a: NDArray) -> str:
-        a = writable_data(a)
-        if a.dtype.kind not in "iuf":
-            raise ValueError(f"{path}: data {name!r} of dtype {a.dtype} cannot be written")
+        a = writable_data(a)  # other dtypes were refused by mesh_data
         if a.ndim > 1 and not np.prod(a.shape[1:]):
             raise ValueError(f"{path}: data {name!r} has no values per row (shape "
                              f"{a.shape}), which a VTK DataArray cannot hold")
