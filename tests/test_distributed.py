@@ -250,6 +250,18 @@ def test_worker_memory_is_checked_before_starting(tmp_path):
     assert leftovers(tmp_path) == ["in.zarr"]
 
 
+def test_stale_scheduler_info_does_not_hide_the_workers(tmp_path, client, monkeypatch):
+    """Client.scheduler_info() returns a cache that its periodic refresh overwrites with a
+    copy listing no workers (distributed 2026.7: a CI run failed with 'no workers'): the
+    check asks the scheduler itself."""
+    mesh = jittered_grid(2, seed=0)
+    good = store.create(tmp_path / "in.zarr", mesh).path
+    monkeypatch.setattr(type(client), "scheduler_info",
+                        lambda self, *a, **k: {"services": {}, "workers": {}})
+    refine_store(good, tmp_path / "out.zarr", client=client)
+    assert_identical(mesh, "7t-qd", 1, store.to_mesh(tmp_path / "out.zarr"))
+
+
 def test_paused_workers_stop_the_run_in_bounded_time(tmp_path, client):
     def pause_above(dask_worker, fraction):  # the workers' own memory monitor pauses them
         before = dask_worker.memory_manager.memory_pause_fraction

@@ -187,13 +187,13 @@ def quiet_shuffle_logs() -> Iterator[None]:
 def check_workers(client: Client, source: str, target: str, chunk_size: int) -> int:
     """Before any work: every worker sees the source and the target's parent, and has the
     memory limit that chunks of ``chunk_size`` rows need. Returns the number of workers."""
-    workers = client.scheduler_info(n_workers=-1)["workers"] if _takes_n(client) else \
-        client.scheduler_info()["workers"]
+    # Asked of the scheduler itself: Client.scheduler_info() returns a cached copy that its
+    # periodic refresh may overwrite with one that lists no workers (distributed 2026.7).
+    workers = client.run_on_scheduler(_memory_limits)
     if not workers:
         raise ClusterError("the Dask cluster has no workers")
     need = min_worker_memory(chunk_size)
-    for address, info in workers.items():
-        limit = int(info.get("memory_limit") or 0)
+    for address, limit in workers.items():
         if limit and limit < need:
             raise MemoryError(
                 f"Dask worker {address} has a memory limit of {limit / 2**20:.0f} MiB; chunks "
@@ -210,10 +210,10 @@ def check_workers(client: Client, source: str, target: str, chunk_size: int) -> 
     return len(workers)
 
 
-def _takes_n(client: Client) -> bool:
-    import inspect
-
-    return "n_workers" in inspect.signature(client.scheduler_info).parameters
+def _memory_limits(dask_scheduler: Any) -> dict[str, int]:
+    """On the scheduler: each worker's address and memory limit in bytes (0: none)."""
+    return {address: int(ws.memory_limit or 0)
+            for address, ws in dask_scheduler.workers.items()}
 
 
 def _visible(source: str, target: str) -> str | None:
