@@ -616,3 +616,8 @@ def test_a_script_without_a_main_guard_fails_instead_of_hanging(tmp_path):
                          text=True, timeout=240)
     assert run.returncode != 0 and "started" not in run.stdout
     assert "put the script's code under 'if __name__ == \"__main__\":'" in run.stderr
+    # the worker's one line, no traceback of multiprocessing's start-up or of Dask's nanny;
+    # the script's own traceback ends in one line that points at it
+    assert run.stderr.count("Traceback") == 1, run.stderr
+    assert run.stderr.rstrip().endswith("worker processes failed to start (their messages "
+                                        "are above)")

@@ -61,6 +61,13 @@ if threading.current_thread() is threading.main_thread():
 """
 
 
+#: What a worker process prints when it finds that importing the script starts a cluster.
+MAIN_GUARD = ("qdrefine: the script starts a local Dask cluster when it is imported, and "
+              "Dask's worker processes import it again (each would start a cluster of its "
+              "own): put the script's code under 'if __name__ == \"__main__\":' "
+              "(docs/scale-out.md)")
+
+
 def local_client(n_workers: int | None = None, memory_limit: str | float = "auto",
                  processes: bool = True, profile: bool = False, **cluster_kwargs: Any) -> Client:
     """A client of a new local cluster: ``n_workers`` (default: one per core) workers of
@@ -76,11 +83,10 @@ def local_client(n_workers: int | None = None, memory_limit: str | float = "auto
 
     if processes and getattr(multiprocessing.current_process(), "_inheriting", False):
         # a worker process importing the script again (how processes start: "spawn"),
-        # whose top-level code starts a cluster: it would wait for its own workers forever
-        raise RuntimeError("qdrefine: the script starts a local Dask cluster when it is "
-                           "imported, and Dask's worker processes import it again (each "
-                           "would start a cluster of its own): put the script's code under "
-                           "'if __name__ == \"__main__\":' (docs/scale-out.md)")
+        # whose top-level code starts a cluster: it would wait for its own workers forever.
+        # SystemExit: the worker process prints this one line, not a traceback of
+        # multiprocessing's start-up; the script's own process reports the failed start.
+        raise SystemExit(MAIN_GUARD)
     # any free port (the link is printed), so that two runs side by side do not fight over
     # Dask's default 8787; without bokeh the HTTP server still serves health checks
     cluster_kwargs.setdefault("dashboard_address", ":0")
@@ -93,9 +99,12 @@ def local_client(n_workers: int | None = None, memory_limit: str | float = "auto
         with signals_held(held):
             client = Client(n_workers=n_workers or CPU_COUNT, threads_per_worker=1,
                             processes=processes, memory_limit=memory_limit, **cluster_kwargs)
-    except Exception:
+    except Exception as exc:
         if held:  # worker processes still importing Dask died of the Ctrl-C: it stops us too
             signal.raise_signal(held[0])
+        if processes and "Nanny failed to start" in str(exc):  # each worker printed why
+            raise RuntimeError("the local Dask cluster's worker processes failed to start "
+                               "(their messages are above)") from None
         raise
     if held:
         client.close()
