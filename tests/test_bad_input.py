@@ -848,6 +848,50 @@ def test_xdmf_and_xmf_of_one_name_are_one_output(tmp_path, monkeypatch, capsys):
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
 
 
+def _xdmf_with_heavy_data_named(folder, h5_name: str) -> None:
+    """``in.xdmf`` (written by meshio, unstamped) whose arrays are in ``h5_name``."""
+    import meshio
+
+    meshio.write(folder / "in.xdmf", meshio.Mesh(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
+                                                 [("triangle", np.array([[0, 1, 2]]))]))
+    (folder / "in.h5").rename(folder / h5_name)
+    xml = folder / "in.xdmf"
+    xml.write_text(xml.read_text().replace("in.h5:", f"{h5_name}:"))
+
+
+def test_an_output_that_would_replace_an_hdf5_file_the_input_names_is_refused(tmp_path,
+                                                                               monkeypatch,
+                                                                               capsys):
+    """An XDMF input whose heavy data is in ``data.h5``: ``refine in.xdmf data.xdmf``
+    replaced ``data.h5`` and so changed the input (review): refused, nothing touched."""
+    from qdrefine.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    _xdmf_with_heavy_data_named(tmp_path, "data.h5")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert main(["refine", "in.xdmf", "data.xdmf"]) == 1
+    assert capsys.readouterr().err == (
+        "qdrefine: error: data.xdmf: the output would overwrite the input (in.xdmf and "
+        "data.xdmf share the heavy-data file data.h5); choose another name\n")
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+    assert main(["refine", "in.xdmf", "out.xdmf"]) == 0  # another name: fine
+    assert qdrefine.read("out.xdmf").n_triangles == 7
+
+
+def test_an_hdf5_dataset_of_another_size_than_the_xml_says_is_refused(tmp_path):
+    """meshio reads a dataset whatever the size the XML gives: an HDF5 file replaced by
+    another mesh's loaded as that mesh (review). One line naming the item."""
+    _xdmf_with_heavy_data_named(tmp_path, "data.h5")
+    qdrefine.write(tmp_path / "other.xdmf", examples.square(2))
+    (tmp_path / "other.h5").replace(tmp_path / "data.h5")
+    result = cli("info", tmp_path / "in.xdmf")
+    assert result.returncode == 1
+    assert result.stderr == (
+        f"qdrefine: error: {tmp_path / 'in.xdmf'}: the data item data.h5:/data0 has "
+        'Dimensions "3 2", but the HDF5 dataset holds 9 x 3 values (a replaced or '
+        "mismatched HDF5 file)\n")
+
+
 @pytest.mark.parametrize("name, refused", [
     ("tag", (".vtu", ".xdmf", ".vtk")), ("gmsh:physical", (".vtu", ".xdmf", ".vtk")),
     ("medit:ref", (".vtu", ".xdmf", ".vtk")), ("cell_tags", (".vtu", ".xdmf", ".vtk")),

@@ -184,15 +184,19 @@ def session() -> Iterator[None]:
         yield
 
 
-def _files(path: str | Path) -> set[Path]:
+def _files(path: str | Path, read: bool = True) -> set[Path]:
     """The files that the mesh file ``path`` is made of, as identities: Triangle files by
     their common base name, an XDMF file with its HDF5 file (``name.h5``, shared by
-    ``name.xdmf`` and ``name.xmf``)."""
+    ``name.xdmf`` and ``name.xmf``: what qdrefine writes) and, when ``read``, every other
+    HDF5 file it refers to."""
     p = Path(location(path)).resolve()  # file:// URLs as their paths
     if p.suffix.lower() in (".node", ".ele", ".poly"):
         return {p.with_suffix(".triangle")}
     if p.suffix.lower() in (".xdmf", ".xmf"):
-        return {p, p.with_suffix(".h5")}
+        from ..io.xdmf import heavy_data_files
+
+        referred = {h.resolve() for h in heavy_data_files(p)} if read else set()
+        return {p, p.with_suffix(".h5")} | referred
     return {p}
 
 
@@ -223,7 +227,7 @@ def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{out}: directory {out.parent} does not exist")
     for i in inputs:
-        shared = _files(i) & _files(path)
+        shared = _files(i) & _files(path, read=False)
         if shared:
             h5 = [p for p in shared if p.suffix == ".h5"]
             also = "" if out.resolve() in shared or not h5 else \

@@ -32,7 +32,7 @@ from ._core import (
     mesh_data,
 )
 
-__all__ = ["read", "write"]
+__all__ = ["heavy_data_files", "read", "write"]
 
 _TYPES = {"i1": ("Char", 1), "i2": ("Short", 2), "i4": ("Int", 4), "i8": ("Int", 8),
           "u1": ("UChar", 1), "u2": ("UShort", 2), "u4": ("UInt", 4), "u8": ("UInt", 8),
@@ -51,23 +51,66 @@ def read(path: Path) -> RawMesh:
     return read_with_meshio(path, "xdmf", "XDMF")
 
 
-#: The HDF5 file of a heavy-data item ``FILE:/dataset``: everything before the last ``:/``
-#: (a Windows drive letter or spaces in the name included).
-_HDF = re.compile(rb'Format="HDF"[^>]*>([^<]+):/[^<:]*<')
+#: A heavy-data item: its attributes and its text ``FILE:/dataset`` (the file is everything
+#: before the last ``:/``: a Windows drive letter or spaces in the name included).
+_ITEM = re.compile(rb"<DataItem\b([^>]*)>([^<]*)</DataItem>")
+_ATTRIBUTE = re.compile(rb'(\w+)\s*=\s*"([^"]*)"')
+
+
+def _heavy_items(text: bytes) -> list[tuple[str, str, str]]:
+    """``(file, dataset, dimensions)`` of every ``Format="HDF"`` data item of XDMF ``text``."""
+    items = []
+    for attributes, body in _ITEM.findall(text):
+        found = {k.decode().lower(): v.decode(errors="replace")
+                 for k, v in _ATTRIBUTE.findall(attributes)}
+        name, sep, dataset = body.decode(errors="replace").strip().rpartition(":/")
+        if found.get("format", "").upper() == "HDF" and sep:
+            items.append((name, "/" + dataset, found.get("dimensions", "")))
+    return items
+
+
+def heavy_data_files(path: str | Path) -> list[Path]:
+    """The HDF5 files that the XDMF file ``path`` refers to (empty when it is not a regular
+    file or cannot be read: a FIFO is never opened)."""
+    path = Path(path)
+    if not path.is_file():
+        return []
+    try:
+        text = path.read_bytes()
+    except OSError:
+        return []
+    return [path.parent / name for name in dict.fromkeys(n for n, _, _ in _heavy_items(text))]
 
 
 def _check_heavy_data(path: Path) -> None:
     """One line naming a missing HDF5 file that the XDMF file refers to (HDF5's own message
-    is several lines of library detail)."""
+    is several lines of library detail), or a dataset whose size is not the one the XML
+    gives (meshio reads the dataset whatever its size: a replaced HDF5 file would load as
+    another mesh)."""
     try:
         text = path.read_bytes()
     except OSError:
         return  # the reader says what is wrong
-    for name in dict.fromkeys(n.strip() for n in _HDF.findall(text)):
-        h5_path = path.parent / name.decode(errors="replace")
+    items = _heavy_items(text)
+    for name in dict.fromkeys(n for n, _, _ in items):
+        h5_path = path.parent / name
         if not h5_path.is_file():
             raise FileNotFoundError(f"{h5_path}: no such file (the heavy data of "
                                     f"{path.name})")
+    import h5py
+
+    for name, dataset, dimensions in items:
+        try:
+            size = int(np.prod([int(d) for d in dimensions.split()]))
+            with h5py.File(path.parent / name, "r") as h5:
+                shape = h5[dataset].shape
+        except (ValueError, KeyError, OSError):
+            continue  # no or odd Dimensions, or a damaged file: the reader says what is wrong
+        if int(np.prod(shape)) != size:
+            raise ValueError(f"{path}: the data item {name}:{dataset} has Dimensions "
+                             f"\"{dimensions}\", but the HDF5 dataset holds "
+                             f"{' x '.join(map(str, shape))} values (a replaced or "
+                             "mismatched HDF5 file)")
 
 
 def _check_set(path: Path) -> None:
