@@ -271,6 +271,32 @@ def test_unwritten_chunks_fail_validation_and_incomplete_stores_are_refused(tmp_
         store.to_mesh(tmp_path / "nan.zarr")
 
 
+@pytest.mark.parametrize("out", ["bad.msh", "bad.node"])
+@pytest.mark.parametrize("array, row, value, message", [
+    ("triangles", 5, 10**6, r"triangles row 5 \(1000000, \d+, \d+\) has a vertex index "
+                            r"outside 0\.\.223: the store is damaged"),
+    ("triangles", 300, -5, r"triangles row 300 \(-5, \d+, \d+\) has a vertex index outside "
+                           r"0\.\.223"),
+    ("edges", 7, 224, r"edges row 7 \(224, \d+\) has a vertex index outside 0\.\.223"),
+    ("points", 9, np.inf, r"points row 9 \(inf, [-\d.e]+\) is not finite"),
+])
+def test_a_damaged_store_is_not_streamed_into_an_unreadable_file(tmp_path, out, array, row,
+                                                                  value, message):
+    """A vertex index beyond the points written into a store by another tool: the streamed
+    .msh and Triangle exports wrote files that no reader takes, and exited 0 (review). One
+    line naming the store, the array and the row; no file."""
+    import zarr
+
+    store.create(tmp_path / "s.zarr", examples.plate_with_hole(), chunk_size=100)
+    z = zarr.open_group(str(tmp_path / "s.zarr"), mode="r+")[array]
+    block = z[...]
+    block[row, 0] = value
+    z[...] = block
+    with pytest.raises(ValueError, match=f"s.zarr: {message}"):
+        store.to_file(tmp_path / "s.zarr", tmp_path / out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.zarr"]
+
+
 def test_stores_at_memory_urls(tmp_path):
     mesh = jittered_grid(3, seed=5)
     s = store.create("memory://qd-store-test/m.zarr/", mesh, chunk_size=7)

@@ -106,9 +106,10 @@ def to_file(store: MeshStore | PathLike, mesh_path: PathLike, *,
 
     ``.msh`` (Gmsh MSH ``format_version``, 4.1 unless ``"2.2"``, text unless ``binary=True``)
     and Triangle's ``.node/.ele/.poly`` are written chunk by chunk, with the same content as
-    :func:`qdrefine.write` would write for :func:`to_mesh` of the store; the rows are not
-    validated again. Every other format loads the mesh (validated) and calls
-    :func:`qdrefine.write`.
+    :func:`qdrefine.write` would write for :func:`to_mesh` of the store; each block is
+    checked for what would make the file unreadable (unwritten chunks, vertex indices
+    outside the points, coordinates that are not finite), not validated as a mesh again.
+    Every other format loads the mesh (validated) and calls :func:`qdrefine.write`.
     """
     s = as_store(store)
     mesh_path = Path(mesh_path)
@@ -167,13 +168,31 @@ def rows_between(s: MeshStore, name: str, start: int, stop: int) -> NDArray:
 def _written(s: MeshStore, name: str, start: int, block: NDArray) -> NDArray:
     """``block`` (rows ``start ..`` of array ``name``), unless it holds the array's fill
     value (:data:`~qdrefine.store.layout.FILL`): a chunk that was never written (a store
-    another tool marked complete, or damaged since), which must not pass for data."""
+    another tool marked complete, or damaged since), which must not pass for data; or,
+    for the arrays a streamed file would carry into an unreadable one, a vertex index
+    outside the points or a coordinate that is not finite (a damaged store)."""
     fill = FILL.get(name)
     hole = np.isnan(block) if fill is not None and np.isnan(fill) else block == fill
     if fill is not None and hole.any():
-        row = start + int(np.flatnonzero(hole.reshape(len(block), -1).any(axis=1))[0])
-        raise ValueError(f"{s.path}: {name} row {row} holds the fill value of a chunk that "
-                         "was never written: the store is incomplete or damaged")
+        raise ValueError(f"{s.path}: {name} row {_first(start, hole)} holds the fill value of "
+                         "a chunk that was never written: the store is incomplete or damaged")
+    if name in ("triangles", "edges") and len(block):
+        outside = (block < 0) | (block >= s.n_points)
+        if outside.any():
+            row = _first(start, outside)
+            raise ValueError(f"{s.path}: {name} row {row} {tuple(block[row - start].tolist())} "
+                             f"has a vertex index outside 0..{s.n_points - 1}: the store is "
+                             "damaged")
+    if name == "points" and len(block) and not np.isfinite(block).all():
+        row = _first(start, ~np.isfinite(block))
+        raise ValueError(f"{s.path}: points row {row} {tuple(block[row - start].tolist())} is "
+                         "not finite: the store is damaged")
     return block
+
+
+def _first(start: int, bad: NDArray) -> int:
+    """The store row of the first row of a block (starting at row ``start``) with a ``bad``
+    entry."""
+    return start + int(np.flatnonzero(bad.reshape(len(bad), -1).any(axis=1))[0])
 
 
