@@ -271,6 +271,62 @@ def test_an_edge_in_two_groups_is_joined_in_both():
     _assert_same(coarsen(fine, np.ones(fine.n_triangles, dtype=bool)), base)
 
 
+def test_coarsening_does_not_depend_on_the_triangle_order():
+    """A restored triangle took the cell data of its child with the lowest row, and the
+    new transitions of a family that of its first row: the same mesh with its rows
+    shuffled came back with other data where children differ (review, 2026-11-27)."""
+    base = examples.gmsh_mesh("l_shape")
+    mesh = refine(base, marked=marking.mark_box(base, (-1, -1, 0, 0)))
+    mesh = refine(mesh, marked=marking.mark_box(mesh, (-0.5, -0.5, 0, 0)))
+    rng = np.random.default_rng(1)
+    mesh = mesh.replace(cell_data={"err": rng.random(mesh.n_triangles)})
+    order = np.random.default_rng(3).permutation(mesh.n_triangles)
+    shuffled = Mesh(mesh.points, mesh.triangles[order], mesh.cell_tags[order], mesh.edges,
+                    mesh.edge_tags, cell_data={"err": mesh.cell_data["err"][order]},
+                    transitions=mesh.transitions[order], origins=mesh.origins[order])
+
+    def data(m):
+        return {tuple(sorted(map(tuple, m.points[t].tolist()))): float(e)
+                for t, e in zip(m.triangles, m.cell_data["err"], strict=True)}
+
+    for marked in (np.ones(mesh.n_triangles, dtype=bool),
+                   marking.mark_box(mesh, (-1, -1, -0.2, 1))):
+        assert data(coarsen(mesh, marked)) == data(coarsen(shuffled, marked[order]))
+
+
+def test_coarsen_mark_file_cycles_do_not_depend_on_the_triangle_order(tmp_path, monkeypatch):
+    """``qdrefine coarsen --mark-file F --cycles 3`` marked later cycles through
+    ``parents``, which map a family's new triangles to its first row: the same mesh with
+    its rows shuffled (and F renumbered) coarsened to another mesh (review, 2026-11-27).
+    The marks are now carried as cell data."""
+    from qdrefine.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    base = examples.gmsh_mesh("l_shape")
+    mesh = base
+    for _ in range(3):
+        mesh = refine(mesh, marked=marking.mark_box(mesh, (-1, -1, 0.2, 0.2)))
+    order = np.random.default_rng(2).permutation(mesh.n_triangles)
+    qdrefine.write("a.msh", mesh)
+    qdrefine.write("b.msh", Mesh(mesh.points, mesh.triangles[order], mesh.cell_tags[order],
+                                 mesh.edges, mesh.edge_tags, transitions=mesh.transitions[order],
+                                 origins=mesh.origins[order]))
+    keep = np.random.default_rng(0).random(mesh.n_triangles) < 0.99
+    np.savetxt("a.txt", np.flatnonzero(keep), fmt="%d")
+    np.savetxt("b.txt", np.flatnonzero(keep[order]), fmt="%d")
+    for x in "ab":
+        assert main(["coarsen", f"{x}.msh", f"{x}_out.msh", "--mark-file", f"{x}.txt",
+                     "--cycles", "3", "-q"]) == 0
+    a, b = qdrefine.read("a_out.msh"), qdrefine.read("b_out.msh")
+    assert a.n_triangles < mesh.n_triangles
+    assert _keys(a) == _keys(b)
+    assert not a.cell_data  # the carried marks are not written
+
+
+def _keys(mesh):
+    return sorted(tuple(sorted(map(tuple, mesh.points[t].tolist()))) for t in mesh.triangles)
+
+
 def test_tagged_pieces_in_any_order_are_joined():
     """The pieces of a cut edge listed in any order (a file sorted by tag, a user's
     permutation) are joined all the same; each joined edge keeps its tag."""

@@ -75,8 +75,12 @@ def mark_file(mesh: Mesh, path: str | PathLike[str]) -> NDArray[np.bool_]:
     [0, 3, 5]
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
+    if path.is_dir():
+        raise IsADirectoryError(f"{path}: is a directory, not a file of triangle ids")
+    if not path.is_file():  # reading a FIFO or device could wait forever
+        raise OSError(f"{path}: not a regular file (a file of triangle ids is read whole)")
     if path.suffix.lower() == ".npy":
         return _npy_marks(path, mesh.n_triangles)
     n = mesh.n_triangles
@@ -102,6 +106,10 @@ def mark_file(mesh: Mesh, path: str | PathLike[str]) -> NDArray[np.bool_]:
 
 
 def _npy_marks(path: Path, n: int) -> NDArray[np.bool_]:
+    with open(path, "rb") as f:
+        if f.read(6) != b"\x93NUMPY":  # NumPy would say "pickled data"
+            raise ValueError(f"{path}: not a .npy file (no NumPy header); a text file of "
+                             "triangle ids needs another extension")
     try:
         a = np.load(path, allow_pickle=False)
     except (ValueError, OSError) as exc:

@@ -4,6 +4,7 @@ and the checks of their arguments."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 from numba import njit, prange
@@ -18,6 +19,7 @@ from ..uniform import check_rounding
 from .families import Families
 from .history import families_of, with_history
 from .output import changed_parents, split_tagged, without_points
+from .representatives import data_rows, inherited
 from .step import Step
 from .window import windowed_step
 
@@ -86,7 +88,9 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
     mesh : Mesh
         Points of ``mesh`` keep their indices, except the centroids of coarsened
         transitions, which are removed (later points move down); new points follow.
-        Cell tags and ``cell_data`` are inherited, ``point_data`` is interpolated
+        Cell tags and ``cell_data`` are inherited (a coarsened family's new triangles:
+        from the member with their vertices, else the member first in coordinate order,
+        :mod:`~qdrefine.adaptive.representatives`), ``point_data`` is interpolated
         linearly, tagged edges are cut where split, physical names are kept.
     parents : (M',) int64
         The input triangle of each output triangle. Output triangles lie in it, except
@@ -115,6 +119,9 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
         else:
             check_rounding(out.points, out.triangles, res.mesh.points, res.mesh.triangles,
                            k, res.parents, rows=res.changed_rows)
+        rows = data_rows(out, fam, res.mesh.triangles, res.parents)
+        if rows is not res.parents:  # a family's new triangles: data independent of the order
+            res = replace(res, mesh=inherited(out, res.mesh, rows))
         out, fam, new_id = _finished(out, res)
         parents = res.parents if parents is None else parents[res.parents]
         if new_id is not None:
@@ -184,7 +191,7 @@ def _changed(before: Mesh, res: Step) -> NDArray[np.bool_]:
     """``(M,) bool``: the input triangles whose output is not the triangle itself, as it was.
 
     Their children are all checked exactly for rounding (a coarsened family's children are
-    not on its first member's lattice, so the float suspect filter does not apply); an
+    not on its members' lattice, so the float suspect filter does not apply); an
     output triangle that is its parent's only child with the parent's own vertex row (the
     same points: the step keeps the input's point ids) was valid before and is skipped.
     """

@@ -29,9 +29,10 @@ from .edgekeys import edge_keys, lookup, oriented
 from .families import Families
 from .history import families_of, with_history
 from .longest_edge import closure
-from .output import emit_step, without_points
+from .output import blocks, emit_step, without_points
 from .plan import SplitPlan, working_edges
 from .red_families import red_families
+from .representatives import data_rows, first_in_coordinate_order, inherited, same_rows
 from .rounds import UPGRADE_LAYERS, Upgrades, conflicts, one_sided_pieces
 from .working import Tree, start, working_rows
 
@@ -63,7 +64,8 @@ def coarsen(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd") -> Me
         others). A restored triangle with a neighbour two levels finer keeps its
         children, each with its own cell data. Points no triangle uses any more are
         removed (the others keep their order); tags, tagged edges (joined again), cell
-        data (a restored triangle's: that of its child with the lowest row), point data
+        data (a restored triangle's: that of the child whose vertices come first in
+        coordinate order, so independent of the triangle order), point data
         and the history are kept. ``coarsen(refine(m,
         marked=k), all)`` is ``m`` again, with the history added. Details:
         ``docs/adaptive.md``, "Coarsening".
@@ -81,7 +83,8 @@ def coarsen_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd"
                    ) -> tuple[Mesh, NDArray[np.int64]]:
     """:func:`coarsen`, also returning ``parents (M',) int64``: an input triangle of each
     output triangle (a restored triangle maps to its child with the lowest row, a
-    transition to its family's first member)."""
+    transition to its family's first member; their cell data: see
+    :mod:`~qdrefine.adaptive.representatives`)."""
     sch = get_scheme(scheme)
     mask = as_mask(marked, mesh.n_triangles)
     check_needed(local_memory_needed(n_working=mesh.n_triangles, n_output=mesh.n_triangles),
@@ -114,12 +117,14 @@ def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
     dropped[child_fam] = True
     gone |= dropped[fam.member]
     dropped = dropped[:-1]
-    # each restored triangle takes the place of its first mesh triangle
+    # each restored triangle takes the place of its first mesh triangle, and the cell data
+    # of the one that comes first in coordinate order
     first_of = owner[children].min(axis=1)
     kept = np.flatnonzero(~gone)
     position = np.concatenate([kept, first_of])
     order = np.argsort(position, kind="stable")
     stands_for = position[order]  # the input triangle each coarse row stands for
+    data_of = np.concatenate([kept, _representatives(mesh, fam, children, n_plain)])[order]
     coarse_rows = np.concatenate([mesh.triangles[kept].astype(np.int64),
                                   found[:, :3]])[order]
     # families that stay, renumbered in their order (members stay consecutive)
@@ -129,8 +134,8 @@ def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
     renum[stay] = np.arange(stay.size)
     coarse_fam = Families(renum[member], fam.parent_triangles[stay], fam.stencil[stay])
     dtype = index_dtype(mesh.n_points)
-    tags = None if mesh.cell_tags is None else mesh.cell_tags[stands_for]
-    cell_data = {name: v[stands_for] for name, v in mesh.cell_data.items()}
+    tags = None if mesh.cell_tags is None else mesh.cell_tags[data_of]
+    cell_data = {name: v[data_of] for name, v in mesh.cell_data.items()}
     coarse = Mesh._trusted(mesh.points, coarse_rows.astype(dtype), tags, None, None,
                            mesh.point_data, cell_data, mesh.physical_names)
     no = np.zeros(coarse.n_triangles, dtype=bool)
@@ -154,31 +159,35 @@ def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
     if (cl.split & ~cl.pre).any():
         raise RuntimeError("qdrefine internal error: coarsening split an edge without points")
     out, parents, fam2, _, _, _ = emit_step(inp, tree, cl)
+    data = data_of[data_rows(coarse, inp.fam, out.triangles, parents)]
     restored = order[parents] >= kept.size  # children of a restored (or re-expanded) row
     parents = stands_for[parents]
     gone_rows = np.flatnonzero(gone)
     same = same_rows(out.triangles[restored], mesh.triangles[gone_rows])
     # a re-expanded family's children are the input's: each stands for itself (its cell
     # data, its origin), not for the family's first child
-    parents[np.flatnonzero(restored)[same >= 0]] = gone_rows[same[same >= 0]]
-    if mesh.cell_data and (same >= 0).any():  # emitted from the coarse rows' (first child's)
-        out = Mesh._trusted(out.points, out.triangles, out.cell_tags, out.edges, out.edge_tags,
-                            out.point_data, {name: v[parents] for name, v in
-                                             mesh.cell_data.items()}, out.physical_names)
+    again = np.flatnonzero(restored)[same >= 0]
+    parents[again] = data[again] = gone_rows[same[same >= 0]]
+    if mesh.cell_data or mesh.cell_tags is not None:  # emitted with the coarse rows' data
+        out = inherited(mesh, out, data)
     origins = mesh.origins[parents]
     return _without_unused(mesh, _origin_rows(out, fam2, origins), fam2, origins), parents
 
 
-def same_rows(rows: NDArray, pool: NDArray) -> NDArray[np.int64]:
-    """For each of ``rows (R, 3)``, the row of ``pool (P, 3)`` with the same three vertices
-    (in any order), or -1."""
-    if not len(rows) or not len(pool):
-        return np.full(len(rows), -1, dtype=np.int64)
-    keys = np.ascontiguousarray(np.sort(np.concatenate([pool, rows]), axis=1), dtype=np.int64)
-    _, which = np.unique(keys.view([("", np.int64)] * 3).ravel(), return_inverse=True)
-    first = np.full(which.max() + 1, -1, dtype=np.int64)
-    first[which[:len(pool)][::-1]] = np.arange(len(pool) - 1, -1, -1)
-    return first[which[len(pool):]]
+def _representatives(mesh: Mesh, fam: Families, children: NDArray[np.int64], n_plain: int
+                     ) -> NDArray[np.int64]:
+    """For each restored triangle (its working children ``(F, T)``, plain ones first, then
+    families), the mesh triangle among those it replaces that comes first in coordinate
+    order (:mod:`~qdrefine.adaptive.representatives`)."""
+    owner = working_rows(mesh, fam)[1]
+    restored = np.repeat(np.arange(children.shape[0]), children.shape[1])
+    flat = children.ravel()
+    plain = flat < n_plain
+    families = flat[~plain] - n_plain
+    counts = fam.counts()[families]
+    rows = np.concatenate([owner[flat[plain]], blocks(fam.first()[families], counts)])
+    group = np.concatenate([restored[plain], np.repeat(restored[~plain], counts)])
+    return first_in_coordinate_order(mesh.points, mesh.triangles, rows, group)[1]
 
 
 def _origin_rows(out: Mesh, fam: Families, origins: NDArray[np.int64]) -> Mesh:

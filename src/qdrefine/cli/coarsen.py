@@ -55,19 +55,18 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError(f"{args.input}: no refinement history to coarsen (the cell "
                                  "data qdrefine:origins that 'qdrefine refine --mark-...' "
                                  "writes into .msh, .vtu, .xdmf and .vtk files)")
-            mark = (lambda m, _: np.ones(m.n_triangles, dtype=bool)) if args.all else \
-                marks.marker(mesh, args)
-            parents = np.arange(mesh.n_triangles, dtype=np.int64)
             n0 = mesh.n_triangles
+            mark, mesh = ((lambda m: np.ones(m.n_triangles, dtype=bool)), mesh) if args.all \
+                else marks.marker(mesh, args)
             for cycle in range(1, cycles + 1):
                 progress.step(f"coarsening, cycle {cycle}/{cycles}")
                 try:
-                    mesh, step = coarsen_marked(mesh, mark(mesh, parents), args.scheme)
+                    mesh = coarsen_marked(mesh, mark(mesh), args.scheme)[0]
                 except HistoryMismatch as exc:
                     raise _common.history_mismatch(args.input, args.scheme, exc) from None
                 except ValueError as exc:  # e.g. a tagged piece refinement did not cut
                     raise ValueError(f"{args.input}: {exc}") from None
-                parents = parents[step]
+            mesh = marks.without_marks(mesh)
             progress.step(f"writing {args.output}")
             _common.write_mesh(args, mesh)
         if not args.quiet:

@@ -12,8 +12,14 @@ from numpy.typing import NDArray
 from ..marking import mark_box, mark_file, mark_tag
 from ..mesh import Mesh
 
-#: ``mark(mesh, parents) -> (M,) bool``; ``parents`` maps ``mesh`` to the input mesh.
-Marker = Callable[[Mesh, NDArray[np.int64]], NDArray[np.bool_]]
+#: ``mark(mesh) -> (M,) bool``.
+Marker = Callable[[Mesh], NDArray[np.bool_]]
+
+#: The cell data field that carries ``--mark-file``'s marks through the cycles: inherited
+#: as cell data is, so that the marks of later cycles do not depend on the triangle order
+#: (through ``parents``, a family's new triangles took its first member's mark); removed
+#: before the mesh is written (:func:`without_marks`).
+CARRIED = "qdrefine:mark-file"
 
 
 def add_options(group) -> None:
@@ -35,25 +41,37 @@ def given(args: argparse.Namespace) -> bool:
     return any(v is not None for v in (args.mark_tag, args.mark_box, args.mark_file))
 
 
-def marker(mesh: Mesh, args: argparse.Namespace) -> Marker:
-    """The marking rule of the options, checked on the input mesh."""
+def marker(mesh: Mesh, args: argparse.Namespace) -> tuple[Marker, Mesh]:
+    """The marking rule of the options, checked on the input mesh; and the mesh to start
+    from (with ``--mark-file``: carrying the marks, :data:`CARRIED`)."""
     if args.mark_tag is not None:
         known = np.unique(mesh.cell_tags) if mesh.cell_tags is not None else []
         missing = sorted(set(args.mark_tag) - set(np.asarray(known).tolist()))
         if missing:
             raise ValueError(f"{args.input}: no triangle has cell tag {missing[0]} (cell "
                              f"tags: {', '.join(map(str, known)) or 'none'})")
-        return lambda m, _: mark_tag(m, args.mark_tag)
+        return (lambda m: mark_tag(m, args.mark_tag)), mesh
     if args.mark_box is not None:
         if not mark_box(mesh, args.mark_box).any():
             raise ValueError(f"{args.input}: the box {','.join(map(str, args.mark_box))} "
                              "meets no triangle")
-        return lambda m, _: mark_box(m, args.mark_box)
+        return (lambda m: mark_box(m, args.mark_box)), mesh
     first = mark_file(mesh, args.mark_file)
     if not first.any():  # as for a box: an output equal to the input is not what was asked
         raise ValueError(f"{args.mark_file}: lists no triangle (ids of {args.input}'s "
                          "triangles, or a boolean mask with some True)")
-    return lambda _, parents: first[parents]
+    if CARRIED in mesh.cell_data:
+        raise ValueError(f"{args.input}: has a cell data field named {CARRIED!r}, which "
+                         "qdrefine uses to carry --mark-file's marks; rename it")
+    return (lambda m: m.cell_data[CARRIED]), mesh.replace(
+        cell_data={**mesh.cell_data, CARRIED: first})
+
+
+def without_marks(mesh: Mesh) -> Mesh:
+    """``mesh`` without the field that carried ``--mark-file``'s marks."""
+    if CARRIED not in mesh.cell_data:
+        return mesh
+    return mesh.replace(cell_data={k: v for k, v in mesh.cell_data.items() if k != CARRIED})
 
 
 def _tags(text: str) -> list[int]:

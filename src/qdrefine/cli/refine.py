@@ -6,8 +6,6 @@ import argparse
 import sys
 import time
 
-import numpy as np
-
 from ..adaptive import HistoryMismatch, refine_marked
 from ..io import RawMesh, mesh_of, read_raw
 from ..memory import check_memory
@@ -165,14 +163,13 @@ def _local(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress,
            raw: RawMesh) -> tuple[Mesh, str]:
     """``--cycles`` rounds of mark and refine (transitions coarsened before refined)."""
     cycles = 1 if args.cycles is None else args.cycles
-    mark = marks.marker(mesh, args)
-    parents = np.arange(mesh.n_triangles, dtype=np.int64)
+    mark, mesh = marks.marker(mesh, args)
     n0, n_marked = mesh.n_triangles, 0
     for cycle in range(1, cycles + 1):
         progress.step(f"refining, cycle {cycle}/{cycles}")
-        marked = mark(mesh, parents)
+        marked = mark(mesh)
         n_marked += int(marked.sum())
-        mesh, step = refine_marked(mesh, marked, args.scheme)
-        parents = parents[step]
+        mesh = refine_marked(mesh, marked, args.scheme)[0]
+    mesh = marks.without_marks(mesh)
     return mesh, (f"{_common.counted(n_marked, 'triangle')} marked, {mesh.n_triangles - n0} "
                   f"added by {args.scheme} in {_common.counted(cycles, 'cycle')}")
