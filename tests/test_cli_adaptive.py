@@ -1,6 +1,7 @@
 """``qdrefine refine`` with marks (--mark-tag, --mark-box, --mark-file, --cycles), in-process
 through ``qdrefine.cli.main``, compared with the Python API."""
 
+import os
 import re
 
 import numpy as np
@@ -148,6 +149,13 @@ def test_uniform_refinement_is_unchanged(tmp_path, run):
     # an empty list wrote the input unchanged (review, 2026-11-27)
     (["--mark-file", "{tmp}/empty.txt"], 1, "empty.txt: lists no triangle"),
     (["--mark-file", "{tmp}/none.npy"], 1, "none.npy: lists no triangle"),
+    # a directory was "no such file", a text file named .npy got NumPy's pickle advice,
+    # a FIFO would have waited for a writer (review, 2026-11-27)
+    (["--mark-file", "{tmp}/dir"], 1, "dir: is a directory, not a file of triangle ids"),
+    (["--mark-file", "{tmp}/text.npy"], 1, "text.npy: not a .npy file (no NumPy header)"),
+    (["--mark-file", "{tmp}/fifo"], 1, "fifo: not a regular file"),
+    (["--mark-file", "{tmp}/carried.txt"], 1, "has a cell data field named "
+                                              "'qdrefine:mark-file'"),
     (["--mark-tag", "1", "--mark-box", "0,0,1,1"], 2, "not allowed with argument"),
     (["--cycles", "2"], 1, "--cycles needs a mark"),
     (["--mark-tag", "1", "--levels", "2"], 1, "with a mark use --cycles"),
@@ -160,8 +168,18 @@ def test_bad_marks_give_one_line_and_no_output(tmp_path, extra, code, message, r
     np.save(tmp_path / "neg.npy", np.array([0, -2]))
     (tmp_path / "empty.txt").write_text("# nothing marked\n")
     np.save(tmp_path / "none.npy", np.zeros(qdrefine.read(SRC).n_triangles, bool))
+    (tmp_path / "dir").mkdir()
+    (tmp_path / "text.npy").write_text("1 2\n")
+    os.mkfifo(tmp_path / "fifo")
+    (tmp_path / "carried.txt").write_text("1 2\n")
+    src = SRC
+    if "carried" in extra[-1]:  # the field that carries the marks is not the user's
+        mesh = qdrefine.read(SRC)
+        src = tmp_path / "carried.vtu"
+        qdrefine.write(src, mesh.replace(cell_data={"qdrefine:mark-file": np.zeros(
+            mesh.n_triangles)}))
     out = tmp_path / "out.msh"
-    result = run("refine", SRC, out, *[a.format(tmp=tmp_path) for a in extra])
+    result = run("refine", src, out, *[a.format(tmp=tmp_path) for a in extra])
     assert result.returncode == code, result.stderr
     assert result.stderr.startswith("qdrefine: error: "), result.stderr
     assert message in result.stderr and result.stderr.count("\n") == 1, result.stderr
