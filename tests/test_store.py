@@ -297,6 +297,29 @@ def test_a_damaged_store_is_not_streamed_into_an_unreadable_file(tmp_path, out, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.zarr"]
 
 
+def test_a_store_path_with_a_double_colon_is_refused(tmp_path):
+    """fsspec reads '::' as URL chaining: ``e::f.zarr`` failed naming '.e/zarr.json', a path
+    the user never gave (review). One line naming the path; nothing left."""
+    with pytest.raises(ValueError, match=r"e::f\.zarr: a local store path cannot contain "
+                                         r"'::' \(fsspec reads it as URL chaining\)"):
+        store.create(tmp_path / "e::f.zarr", examples.square(2))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_store_that_cannot_be_created_names_the_target(tmp_path, monkeypatch):
+    """A directory that refuses new entries: the message named qdrefine's temporary
+    (``.y.zarr~host~pid~token.tmp``), not the store (review)."""
+    import errno
+    import os
+
+    def refuse(path, *args, **kwargs):
+        raise PermissionError(errno.EPERM, "Operation not permitted", path)
+
+    monkeypatch.setattr(os, "mkdir", refuse)
+    with pytest.raises(OSError, match=r"^\S+y\.zarr: cannot write: Operation not permitted$"):
+        store.create(tmp_path / "y.zarr", examples.square(2))
+
+
 def test_stores_at_memory_urls(tmp_path):
     mesh = jittered_grid(3, seed=5)
     s = store.create("memory://qd-store-test/m.zarr/", mesh, chunk_size=7)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from ..interrupts import signals_held
 from ..io import permission_bits
+from ..io._core import cannot_write
 from .layout import finish, is_store
 from .locations import PathLike, filesystem, is_local, join, location, split
 
@@ -40,8 +41,11 @@ def writing(path: PathLike) -> Iterator[str]:
     fs, root = filesystem(tmp)
     try:
         if is_local(url):
-            os.mkdir(root, permission_bits(Path(url), 0o777))
-            os.chmod(root, permission_bits(Path(url), 0o777))
+            try:
+                os.mkdir(root, permission_bits(Path(url), 0o777))
+                os.chmod(root, permission_bits(Path(url), 0o777))
+            except OSError as exc:  # the message names the target, not our temporary
+                raise cannot_write(url, exc.strerror or str(exc), exc.errno) from None
         yield tmp
         finish(tmp)
         replace(tmp, url)

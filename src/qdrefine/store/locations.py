@@ -35,6 +35,9 @@ def filesystem(url: str):
     (object stores' filesystems cache directory listings that other writers change)."""
     import fsspec
 
+    if is_local(url) and "::" in url:  # fsspec and Zarr would open another path
+        raise ValueError(f"{url}: a local store path cannot contain '::' (fsspec reads it "
+                         "as URL chaining); rename it")
     fs, root = fsspec.core.url_to_fs(url)
     fs.invalidate_cache()
     return fs, root
