@@ -231,6 +231,9 @@ def test_bad_input_through_the_entry_point(tmp_path):
     (["demo", "--cycles", "2"], "--cycles applies to --afem only"),
     (["demo", "--afem", "--cycles", "0"], "expected a number >= 1"),
     (["paper", "IN.msh"], "IN.msh: exists and is not a directory"),
+    # an output directory that cannot be made: "[Errno 20] Not a directory: ..." (review)
+    (["demo", "IN.msh/d"], "IN.msh/d: cannot write: Not a directory"),
+    (["paper", "IN.msh/p"], "IN.msh/p: cannot write: Not a directory"),
     (["compare", "IN.msh", "--levels", "30"], "comparing the schemes (8 triangles, 30 levels) "
                                               "needs about"),  # was killed by the OOM killer
     (["demo", "--levels", "9"], "the demo (384 triangles, 9 levels) needs about"),

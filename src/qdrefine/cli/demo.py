@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import examples, report
-from ..io import write
+from ..io import make_directory, write
 from ..mesh import Mesh
 from ..plot import mesh as plot_mesh
 from ..quality import min_angles
@@ -65,7 +65,7 @@ def _run(args: argparse.Namespace) -> int:
     else:  # and too little memory too
         report.check_study_memory(examples.plate_with_hole(), scheme_names(), args.levels,
                                   "the demo", keep_all=True)
-    out.mkdir(parents=True, exist_ok=True)
+    make_directory(out)
     say = (lambda *a: None) if args.quiet else print
     if args.afem:
         return _afem(out, args.cycles, say, args.quiet)

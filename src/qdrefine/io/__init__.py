@@ -57,12 +57,20 @@ from ..check import MIN_ANGLE, Checked, find
 from ..memory import check_needed, reading_needed_for_bytes
 from ..mesh import Mesh, _data, _names, history_rows
 from . import gmsh, obj, triangle, vtu, xdmf
-from ._core import WRITE_ERRNOS, RawMesh, atomic_path, atomic_paths, cannot_write, permission_bits
+from ._core import (
+    WRITE_ERRNOS,
+    RawMesh,
+    atomic_path,
+    atomic_paths,
+    cannot_write,
+    make_directory,
+    permission_bits,
+)
 from .meshio_formats import read_with_meshio, write_with_meshio
 
 __all__ = ["read", "read_raw", "mesh_of", "check_file", "write", "FORMATS", "Format", "RawMesh",
            "atomic_path", "atomic_paths", "permission_bits", "GMSH_VERSIONS",
-           "WRITE_ERRNOS", "cannot_write"]
+           "WRITE_ERRNOS", "cannot_write", "make_directory"]
 
 PathLike = str | os.PathLike
 

@@ -322,6 +322,19 @@ def cannot_write(path: PathLike, reason: str, number: int | None) -> OSError:
     return error
 
 
+def make_directory(path: PathLike) -> Path:
+    """Create the output directory ``path`` (and its parents) if missing; a refusal is one
+    line naming it (:func:`cannot_write`)."""
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:  # a file, or a link to one
+        raise NotADirectoryError(f"{path}: exists and is not a directory") from None
+    except OSError as exc:
+        raise cannot_write(path, exc.strerror or str(exc), exc.errno) from None
+    return path
+
+
 @contextlib.contextmanager
 def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
     """:func:`atomic_path` for a set of files written together (Triangle's three files, XDMF

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import diagram as dg
-from ..io import atomic_path
+from ..io import atomic_path, make_directory
 from .claims import PAPER_CLAIMS, PAPER_TABLE1
 from .cost import decision_costs
 from .figures import save_all
@@ -99,7 +99,7 @@ def write_all(outdir: str | Path, figures: bool = True,
     out = Path(outdir)
     if out.exists() and not out.is_dir():  # before a minute of work, not after it
         raise NotADirectoryError(f"{out}: exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
+    make_directory(out)
     if not os.access(out, os.W_OK | os.X_OK):
         raise PermissionError(f"{out}: cannot write into this directory")
     say = progress or (lambda _: None)
