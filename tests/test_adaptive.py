@@ -679,6 +679,36 @@ def test_what_a_familys_new_triangles_inherit_does_not_depend_on_the_triangle_or
     assert (np.diff(pa) >= 0).all()  # parents: in order, as documented
 
 
+@pytest.mark.parametrize("scheme", ["7t-qd", "7t-le", "7t-d"])
+def test_a_triangle_made_again_keeps_its_own_cell_data(scheme):
+    """A family's triangle that the step makes again (the same corners) keeps its own cell
+    data, also one at the family's centroid, which the step numbers anew (review: it took
+    another member's; the match was by vertex ids). Refinement and coarsening."""
+    base = examples.gmsh_mesh("l_shape")
+
+    def with_ids(mesh):
+        return mesh.replace(cell_data={"id": np.arange(mesh.n_triangles, dtype=float)})
+
+    def made_again(before, after):  # (output row, input row) with the same corners
+        rows = {tuple(sorted(map(tuple, before.points[t].tolist()))): i
+                for i, t in enumerate(before.triangles)}
+        return [(i, rows[k]) for i, t in enumerate(after.triangles)
+                if (k := tuple(sorted(map(tuple, after.points[t].tolist())))) in rows]
+
+    cases = []
+    mesh = with_ids(refine(base, scheme, marked=[0]))
+    cases.append((mesh, refine(mesh, scheme, marked=[15])))
+    mesh = with_ids(refine(refine(base, scheme, marked=[7]), scheme, marked=[36]))
+    cases.append((mesh, coarsen(mesh, np.ones(mesh.n_triangles, dtype=bool), scheme)))
+    for before, after in cases:
+        pairs = made_again(before, after)
+        renumbered = [i for i, j in pairs  # a point numbered anew: the review's case
+                      if set(after.triangles[i]) != set(before.triangles[j])]
+        assert renumbered
+        for i, j in pairs:
+            assert after.cell_data["id"][i] == j
+
+
 @pytest.mark.parametrize("scheme, marks", [("7t-qd", "scattered"), ("7t-qd", "circle"),
                                            ("7t-le", "children"), ("4t-le", "scattered")])
 def test_a_step_on_a_window_is_the_step_on_the_whole_mesh(scheme, marks, monkeypatch):

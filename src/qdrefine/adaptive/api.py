@@ -119,7 +119,7 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
         else:
             check_rounding(out.points, out.triangles, res.mesh.points, res.mesh.triangles,
                            k, res.parents, rows=res.changed_rows)
-        rows = data_rows(out, fam, res.mesh.triangles, res.parents)
+        rows = data_rows(out, fam, res.mesh, res.parents)
         if rows is not res.parents:  # a family's new triangles: data independent of the order
             res = replace(res, mesh=inherited(out, res.mesh, rows))
         out, fam, new_id = _finished(out, res)

@@ -32,7 +32,7 @@ from .longest_edge import closure
 from .output import blocks, emit_step, without_points
 from .plan import SplitPlan, working_edges
 from .red_families import red_families
-from .representatives import data_rows, first_in_coordinate_order, inherited, same_rows
+from .representatives import data_rows, first_in_coordinate_order, inherited, same_triangles
 from .rounds import UPGRADE_LAYERS, Upgrades, conflicts, one_sided_pieces
 from .working import Tree, start, working_rows
 
@@ -159,11 +159,12 @@ def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
     if (cl.split & ~cl.pre).any():
         raise RuntimeError("qdrefine internal error: coarsening split an edge without points")
     out, parents, fam2, _, _, _ = emit_step(inp, tree, cl)
-    data = data_of[data_rows(coarse, inp.fam, out.triangles, parents)]
+    data = data_of[data_rows(coarse, inp.fam, out, parents)]
     restored = order[parents] >= kept.size  # children of a restored (or re-expanded) row
     parents = stands_for[parents]
     gone_rows = np.flatnonzero(gone)
-    same = same_rows(out.triangles[restored], mesh.triangles[gone_rows])
+    same = same_triangles(out.points, out.triangles[restored], mesh.points,
+                          mesh.triangles[gone_rows])
     # a re-expanded family's children are the input's: each stands for itself (its cell
     # data, its origin), not for the family's first child
     again = np.flatnonzero(restored)[same >= 0]

@@ -6,7 +6,8 @@ restored triangle to its child with the lowest row: children stay contiguous and
 parent order); their data comes from here.
 
 A triangle made again with the vertices of a member stands for that member
-(:func:`same_rows`). Otherwise, the group's first row would make the output depend on the
+(:func:`same_triangles`: by coordinates, since a transition made again numbers its
+centroid anew). Otherwise, the group's first row would make the output depend on the
 triangle order whenever the members differ (cell data set per triangle after refinement,
 marks read back through ``parents``); the rule here depends on the coordinates only: the
 member whose vertices, sorted by ``(x, y)``, come first in lexicographic order
@@ -22,7 +23,8 @@ from ..mesh import Mesh
 from .families import Families
 from .output import blocks
 
-__all__ = ["data_rows", "first_in_coordinate_order", "inherited", "same_rows"]
+__all__ = ["data_rows", "first_in_coordinate_order", "inherited", "same_triangles",
+           "sorted_corners"]
 
 
 def first_in_coordinate_order(points: NDArray[np.float64], triangles: NDArray[np.integer],
@@ -50,30 +52,40 @@ def first_in_coordinate_order(points: NDArray[np.float64], triangles: NDArray[np
     rows, group = np.asarray(rows, dtype=np.int64), np.asarray(group, dtype=np.int64)
     if not rows.size:
         return np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)
-    corners = points[triangles[rows]]  # (R, 3, 2)
-    x, y = corners[:, :, 0], corners[:, :, 1]
-    row_of = np.repeat(np.arange(rows.size), 3)
-    order = np.lexsort((y.ravel(), x.ravel(), row_of)).reshape(-1, 3)  # each row's vertices
-    sx, sy = x.ravel()[order], y.ravel()[order]  # (R, 3), sorted by (x, y) within the row
-    keys = [sy[:, 2], sx[:, 2], sy[:, 1], sx[:, 1], sy[:, 0], sx[:, 0], group]
-    by = np.lexsort(keys)  # by group, then the coordinates (last key first)
+    corners = sorted_corners(points, triangles[rows])
+    by = np.lexsort([*corners.T[::-1], group])  # by group, then the coordinates
     first = np.concatenate([[True], group[by][1:] != group[by][:-1]])
     return group[by][first], rows[by][first]
 
 
-def same_rows(rows: NDArray, pool: NDArray) -> NDArray[np.int64]:
-    """For each of ``rows (R, 3)``, the row of ``pool (P, 3)`` with the same three vertices
-    (in any order), or -1."""
+def sorted_corners(points: NDArray[np.float64], triangles: NDArray[np.integer]
+                   ) -> NDArray[np.float64]:
+    """``(R, 6)``: each triangle's corners ``x0, y0, x1, y1, x2, y2``, sorted by ``x``
+    then ``y`` (a key of the triangle that neither the vertex ids nor the row's rotation
+    change)."""
+    corners = points[triangles]  # (R, 3, 2)
+    x, y = corners[:, :, 0].ravel(), corners[:, :, 1].ravel()
+    order = np.lexsort((y, x, np.repeat(np.arange(len(triangles)), 3)))
+    return np.stack([x[order], y[order]], axis=1).reshape(-1, 6)
+
+
+def same_triangles(points: NDArray[np.float64], rows: NDArray, pool_points: NDArray[np.float64],
+                   pool: NDArray) -> NDArray[np.int64]:
+    """For each of ``rows (R, 3)`` (into ``points``), the row of ``pool (P, 3)`` (into
+    ``pool_points``) with the same three corners, or -1: by coordinates, bit for bit, so a
+    point that a step numbered anew (the centroid of a transition made again) matches."""
     if not len(rows) or not len(pool):
         return np.full(len(rows), -1, dtype=np.int64)
-    keys = np.ascontiguousarray(np.sort(np.concatenate([pool, rows]), axis=1), dtype=np.int64)
-    _, which = np.unique(keys.view([("", np.int64)] * 3).ravel(), return_inverse=True)
+    keys = np.ascontiguousarray(np.concatenate([sorted_corners(pool_points, pool),
+                                                sorted_corners(points, rows)]))
+    _, which = np.unique(keys.view(np.dtype((np.void, 48))).ravel(), return_inverse=True)
+    which = which.ravel()
     first = np.full(which.max() + 1, -1, dtype=np.int64)
     first[which[:len(pool)][::-1]] = np.arange(len(pool) - 1, -1, -1)
     return first[which[len(pool):]]
 
 
-def data_rows(before: Mesh, fam: Families, triangles: NDArray, parents: NDArray[np.int64]
+def data_rows(before: Mesh, fam: Families, after: Mesh, parents: NDArray[np.int64]
               ) -> NDArray[np.int64]:
     """The ``before`` row whose cell tag and cell data each output triangle takes: its
     parent (``parents``, a step's), except for the triangles made from a transition
@@ -81,8 +93,8 @@ def data_rows(before: Mesh, fam: Families, triangles: NDArray, parents: NDArray[
     with the same vertices, else the member that comes first in coordinate order.
     Members copied as they are keep their own.
 
-    ``fam``: ``before``'s families, members consecutive; ``triangles (M', 3)``: the
-    output's. Returns ``parents`` itself (no pass over the output) for an input without
+    ``fam``: ``before``'s families, members consecutive; ``after``: the step's output.
+    Returns ``parents`` itself (no pass over the output) for an input without
     families, or when no row changes.
     """
     if not fam.n_families:
@@ -90,7 +102,7 @@ def data_rows(before: Mesh, fam: Families, triangles: NDArray, parents: NDArray[
     member = fam.member[parents]
     cand = np.flatnonzero(member >= 0)
     if cand.size:  # not the members copied as they are
-        copied = (triangles[cand] == before.triangles[parents[cand]]).all(axis=1)
+        copied = (after.triangles[cand] == before.triangles[parents[cand]]).all(axis=1)
         cand = cand[~copied]
     if not cand.size:
         return parents
@@ -102,7 +114,8 @@ def data_rows(before: Mesh, fam: Families, triangles: NDArray, parents: NDArray[
     by_family = np.full(fam.n_families, -1, dtype=np.int64)
     by_family[found] = chosen
     mapped = by_family[member[cand]]
-    same = same_rows(triangles[cand], before.triangles[members])
+    same = same_triangles(after.points, after.triangles[cand], before.points,
+                          before.triangles[members])
     mapped[same >= 0] = members[same[same >= 0]]
     if (mapped == parents[cand]).all():
         return parents
