@@ -265,3 +265,16 @@ def test_coarsen_says_why_nothing_changed(tmp_path, run):
     assert result.returncode == 0 and result.stderr == (
         f"qdrefine: note: no partition of {quad} is a 7t-qd partition, but some are 4t-le "
         "partitions: was it refined with 4t-le? (see --scheme)\n")
+
+
+def test_a_users_field_named_like_the_carried_marks_stays_without_mark_file(tmp_path, run):
+    """The field that carries --mark-file's marks was removed after every local refinement
+    and coarsening, a user's field of that name too (review): only --mark-file, which
+    refuses such an input, removes it."""
+    mesh = qdrefine.read(SRC)
+    values = np.arange(mesh.n_triangles, dtype=float)
+    qdrefine.write(tmp_path / "in.vtu", mesh.replace(cell_data={"qdrefine:mark-file": values}))
+    result = run("refine", tmp_path / "in.vtu", tmp_path / "out.vtu", "--mark-box", "0,0,1,1",
+                 "-q")
+    assert result.returncode == 0, result.stderr
+    assert "qdrefine:mark-file" in qdrefine.read(tmp_path / "out.vtu").cell_data

@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
                     raise _common.history_mismatch(args.input, args.scheme, exc) from None
                 except ValueError as exc:  # e.g. a tagged piece refinement did not cut
                     raise ValueError(f"{args.input}: {exc}") from None
-            mesh = marks.without_marks(mesh)
+            mesh = marks.without_marks(mesh, args)
             progress.step(f"writing {args.output}")
             _common.write_mesh(args, mesh)
         if not args.quiet:

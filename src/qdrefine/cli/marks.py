@@ -67,9 +67,10 @@ def marker(mesh: Mesh, args: argparse.Namespace) -> tuple[Marker, Mesh]:
         cell_data={**mesh.cell_data, CARRIED: first})
 
 
-def without_marks(mesh: Mesh) -> Mesh:
-    """``mesh`` without the field that carried ``--mark-file``'s marks."""
-    if CARRIED not in mesh.cell_data:
+def without_marks(mesh: Mesh, args: argparse.Namespace) -> Mesh:
+    """``mesh`` without the field that carried ``--mark-file``'s marks (a user's field of
+    that name stays where ``--mark-file`` is not given: :func:`marker` refuses it with)."""
+    if args.mark_file is None or CARRIED not in mesh.cell_data:
         return mesh
     return mesh.replace(cell_data={k: v for k, v in mesh.cell_data.items() if k != CARRIED})
 

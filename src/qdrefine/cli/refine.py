@@ -170,6 +170,6 @@ def _local(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress,
         marked = mark(mesh)
         n_marked += int(marked.sum())
         mesh = refine_marked(mesh, marked, args.scheme)[0]
-    mesh = marks.without_marks(mesh)
+    mesh = marks.without_marks(mesh, args)
     return mesh, (f"{_common.counted(n_marked, 'triangle')} marked, {mesh.n_triangles - n0} "
                   f"added by {args.scheme} in {_common.counted(cycles, 'cycle')}")
