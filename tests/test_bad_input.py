@@ -878,6 +878,15 @@ def test_an_output_that_would_replace_an_hdf5_file_the_input_names_is_refused(tm
     assert qdrefine.read("out.xdmf").n_triangles == 7
 
 
+def test_an_xdmf_name_with_an_xml_entity_reads_back(tmp_path):
+    """``a&b.xdmf`` names ``a&amp;b.h5`` in its XML: the heavy-data check looked for a file
+    named ``a&amp;b.h5`` and refused the pair (review)."""
+    qdrefine.write(tmp_path / "a&b.xdmf", examples.square(2))
+    assert qdrefine.read(tmp_path / "a&b.xdmf").n_triangles == examples.square(2).n_triangles
+    result = cli("refine", tmp_path / "a&b.xdmf", tmp_path / "a&b.xmf")
+    assert result.returncode == 1 and "share the heavy-data file a&b.h5" in result.stderr
+
+
 def test_an_hdf5_dataset_of_another_size_than_the_xml_says_is_refused(tmp_path):
     """meshio reads a dataset whatever the size the XML gives: an HDF5 file replaced by
     another mesh's loaded as that mesh (review). One line naming the item."""

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import errno
 import hashlib
+import html
 import os
 import re
 from pathlib import Path
@@ -61,9 +62,10 @@ def _heavy_items(text: bytes) -> list[tuple[str, str, str]]:
     """``(file, dataset, dimensions)`` of every ``Format="HDF"`` data item of XDMF ``text``."""
     items = []
     for attributes, body in _ITEM.findall(text):
-        found = {k.decode().lower(): v.decode(errors="replace")
+        found = {k.decode().lower(): html.unescape(v.decode(errors="replace"))
                  for k, v in _ATTRIBUTE.findall(attributes)}
-        name, sep, dataset = body.decode(errors="replace").strip().rpartition(":/")
+        text = html.unescape(body.decode(errors="replace")).strip()  # a&amp;b.h5: a&b.h5
+        name, sep, dataset = text.rpartition(":/")
         if found.get("format", "").upper() == "HDF" and sep:
             items.append((name, "/" + dataset, found.get("dimensions", "")))
     return items
