@@ -8,7 +8,7 @@ import pytest
 import skfem
 
 import qdrefine
-from qdrefine import examples, interop
+from qdrefine import Mesh, examples, interop
 
 
 @pytest.fixture(scope="module")
@@ -104,3 +104,40 @@ def test_triangulation(mesh):
     tri = interop.to_triangulation(mesh)
     np.testing.assert_array_equal(tri.triangles, mesh.triangles)
     np.testing.assert_array_equal(tri.x, mesh.points[:, 0])
+
+
+def _two_tags_one_name():
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    return Mesh(points, [[0, 1, 2], [1, 3, 2]], cell_tags=[1, 2], edges=[[0, 1], [1, 3]],
+                edge_tags=[1, 2], physical_names={(2, 1): "steel", (2, 2): "steel",
+                                                  (1, 1): "wall", (1, 2): "wall"})
+
+
+def test_tags_of_one_physical_name_are_one_skfem_set():
+    """Two tags with one physical name: the later one replaced the earlier in to_skfem's
+    subdomains and boundaries (review): now the set holds both."""
+    m = interop.to_skfem(_two_tags_one_name())
+    assert m.subdomains["steel"].tolist() == [0, 1]
+    assert len(m.boundaries["wall"]) == 2
+
+
+def test_a_physical_name_meshio_cannot_hold_is_refused():
+    """meshio's field_data maps a name to one group: one of two groups of one name was
+    lost without a word (review)."""
+    with pytest.raises(ValueError, match=r"the physical name 'steel' names the groups "
+                                         r"\(dim, tag\) \(2, 1\) and \(2, 2\)"):
+        interop.to_meshio(_two_tags_one_name().replace(
+            physical_names={(2, 1): "steel", (2, 2): "steel"}))
+
+
+def test_overlapping_skfem_subdomains_are_refused():
+    """A triangle in two scikit-fem subdomains got the later one's tag, silently (review):
+    a cell tag is one per triangle."""
+    import skfem
+
+    m = skfem.MeshTri().refined(2).with_subdomains({"a": lambda x: x[0] < 0.6,
+                                                    "b": lambda x: x[0] > 0.4})
+    assert set(m.subdomains["a"]) & set(m.subdomains["b"])
+    with pytest.raises(ValueError, match=r"skfem.MeshTri: triangle \d+ is in the subdomains "
+                                         r"'a' and 'b'"):
+        interop.from_skfem(m)

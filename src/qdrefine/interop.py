@@ -61,16 +61,19 @@ def to_skfem(mesh: Mesh):
     m = skfem.MeshTri(np.ascontiguousarray(mesh.points.T, dtype=np.float64),
                       np.ascontiguousarray(mesh.triangles.T, dtype=np.int64), sort_t=False)
     names = mesh.physical_names or {}
-    boundaries, subdomains = {}, {}
+    boundaries: dict[str, NDArray] = {}
+    subdomains: dict[str, NDArray] = {}
     if mesh.edges is not None and len(mesh.edges):
         facets = _facet_ids(m.facets.T, np.asarray(mesh.edges), mesh.n_points)
-        for tag in np.unique(mesh.edge_tags):
-            boundaries[names.get((1, int(tag)), f"tag {tag}")] = \
-                np.sort(facets[mesh.edge_tags == tag])
+        for tag in np.unique(mesh.edge_tags):  # tags of one name: one boundary, all of them
+            name = names.get((1, int(tag)), f"tag {tag}")
+            boundaries[name] = np.unique(np.concatenate(
+                [boundaries.get(name, facets[:0]), facets[mesh.edge_tags == tag]]))
     if mesh.cell_tags is not None:
         for tag in np.unique(mesh.cell_tags):
-            subdomains[names.get((2, int(tag)), f"tag {tag}")] = \
-                np.flatnonzero(mesh.cell_tags == tag)
+            name = names.get((2, int(tag)), f"tag {tag}")
+            subdomains[name] = np.union1d(subdomains.get(name, []),
+                                          np.flatnonzero(mesh.cell_tags == tag)).astype(np.int64)
     if boundaries:
         m = m.with_boundaries(boundaries, boundaries_only=False)
     if subdomains:
@@ -91,8 +94,16 @@ def from_skfem(m) -> Mesh:
     subdomains = getattr(m, "subdomains", None) or {}
     if subdomains:
         raw.cell_tags = np.zeros(len(triangles), dtype=np.int64)
+        owner: dict[int, str] = {}
         for tag, name in enumerate(sorted(subdomains), start=1):
-            raw.cell_tags[np.asarray(subdomains[name], dtype=np.int64)] = tag
+            ids = np.asarray(subdomains[name], dtype=np.int64)
+            taken = ids[raw.cell_tags[ids] != 0]
+            if taken.size:  # a cell tag is one per triangle
+                raise ValueError(f"skfem.MeshTri: triangle {int(taken[0])} is in the subdomains "
+                                 f"{owner[int(raw.cell_tags[taken[0]])]!r} and {name!r}; cell "
+                                 "tags hold one subdomain per triangle")
+            raw.cell_tags[ids] = tag
+            owner[tag] = name
             raw.physical_names[(2, tag)] = name
     boundaries = getattr(m, "boundaries", None) or {}
     if boundaries:

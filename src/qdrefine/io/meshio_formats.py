@@ -299,10 +299,23 @@ def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
             value = writable_data(value)
             pad = [np.zeros((k, *value.shape[1:]), value.dtype)] if k else []
             cell_data[name] = [*pad, value]
-    field_data = {name: np.array([tag, dim]) for (dim, tag), name in
-                  (mesh.physical_names or {}).items()} if names else None
+    field_data = _field_data(mesh.physical_names or {}) if names else None
     return meshio.Mesh(points, cells, point_data=point_data, cell_data=cell_data,
                        field_data=field_data)
+
+
+def _field_data(physical_names: dict[tuple[int, int], str]) -> dict[str, NDArray]:
+    """meshio's ``field_data`` (``name -> [tag, dim]``: one group per name) of the physical
+    names; a name given to two groups is refused (one of them would be lost)."""
+    field_data: dict[str, NDArray] = {}
+    for (dim, tag), name in sorted(physical_names.items()):
+        if name in field_data:
+            other = tuple(int(v) for v in field_data[name][::-1])
+            raise ValueError(f"the physical name {name!r} names the groups (dim, tag) {other} "
+                             f"and {(dim, tag)}; meshio's field_data holds one group per name: "
+                             "rename one")
+        field_data[name] = np.array([tag, dim])
+    return field_data
 
 
 def raw_from_meshio(m, path: Path) -> RawMesh:
