@@ -107,3 +107,17 @@ def test_local_refinement_and_coarsening_keep_floating_dtypes():
                 coarsen(fine, np.ones(fine.n_triangles, bool))):
         assert {k: v.dtype for k, v in out.point_data.items()} == \
             {k: np.dtype(t) for k, t in want.items()}
+
+
+def test_narrow_floats_are_interpolated_in_float64():
+    """A float16 field of 60000 (representable) became inf at the new points: ``2 a + b``
+    overflowed in the field's own dtype (review). Computed in float64, rounded once."""
+    mesh = examples.square(2)
+    big = np.full(mesh.n_points, 60000, dtype=np.float16)
+    x = mesh.points[:, 0]
+    mesh = mesh.replace(point_data={"big": big, "x": x.astype(np.float32)})
+    for fine in (refine(mesh), refine(mesh, marked=[0]), refine(mesh, "4t-le")):
+        assert fine.point_data["big"].dtype == np.float16
+        assert (fine.point_data["big"] == 60000).all()
+        want = fine.points[:, 0].astype(np.float32)  # one rounding of the float64 value
+        assert np.array_equal(fine.point_data["x"], want)

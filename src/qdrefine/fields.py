@@ -23,16 +23,31 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["interpolate_point_data", "refine_point_data", "inherit_cell_data"]
+__all__ = ["interpolate_point_data", "refine_point_data", "inherit_cell_data", "edge_value",
+           "centroid_value"]
 
 
-def _lattice(a: NDArray, b: NDArray, j: int, k: int) -> NDArray:
-    """Point ``j`` of ``k`` on the segments from ``a`` to ``b`` (the kernels' formula)."""
+def edge_value(a: NDArray, b: NDArray, j: int, k: int) -> NDArray:
+    """A field's value at point ``j`` of ``k`` on the segments from values ``a`` to ``b``:
+    the kernels' formula for the points themselves, so a linear field stays exact to
+    rounding. Fields narrower than float64 are computed in float64 (``2 a + b`` of two
+    float16 values of 60000 overflowed) and rounded once when stored."""
+    a, b = _wide(a), _wide(b)
     if k == 1:
         return (a + b) * 0.5
     if k != 2:
         raise ValueError(f"k (new points per edge) must be 1 or 2, got {k}")
     return (2.0 * a + b) / 3.0 if j == 0 else (a + 2.0 * b) / 3.0
+
+
+def centroid_value(a: NDArray, b: NDArray, c: NDArray) -> NDArray:
+    """A field's value at the centroid of the points with values ``a, b, c`` (the mean;
+    narrow floats computed in float64, as :func:`edge_value`)."""
+    return (_wide(a) + _wide(b) + _wide(c)) / 3.0
+
+
+def _wide(v: NDArray) -> NDArray:
+    return v.astype(np.float64) if v.dtype.kind == "f" and v.dtype.itemsize < 8 else v
 
 
 def interpolate_point_data(point_data: Mapping[str, ArrayLike], edge_ends: ArrayLike, k: int
@@ -65,7 +80,7 @@ def interpolate_point_data(point_data: Mapping[str, ArrayLike], edge_ends: Array
         a, b = v[ends[:, 0]], v[ends[:, 1]]
         rows = np.empty((len(ends), k, *v.shape[1:]), dtype=v.dtype)
         for j in range(k):
-            rows[:, j] = _lattice(a, b, j, k)
+            rows[:, j] = edge_value(a, b, j, k)
         out[name] = rows.reshape(len(ends) * k, *v.shape[1:])
     return out
 

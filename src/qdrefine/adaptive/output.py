@@ -7,6 +7,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from ..fields import centroid_value, edge_value
 from ..memory import check_needed, local_memory_needed
 from ..mesh import Mesh, index_dtype
 from .edgekeys import KEY, edge_keys, lookup, oriented, register
@@ -139,16 +140,13 @@ def new_point_data(data: dict, n: int, keys: NDArray[np.int64], pts: NDArray[np.
         while todo_e.any() or todo_c.any():
             ready = todo_e & known[a] & known[b]
             r = np.flatnonzero(ready)
-            if k == 1:
-                v[ids[r, 0]] = (v[a[r]] + v[b[r]]) * 0.5
-            else:
-                v[ids[r, 0]] = (2.0 * v[a[r]] + v[b[r]]) / 3.0
-                v[ids[r, 1]] = (v[a[r]] + 2.0 * v[b[r]]) / 3.0
+            for j in range(k):
+                v[ids[r, j]] = edge_value(v[a[r]], v[b[r]], j, k)
             known[ids[r].reshape(-1)] = True
             todo_e &= ~ready
             c = np.flatnonzero(todo_c & known[corners].all(axis=1))
-            v[n + ids.size + c] = (v[corners[c, 0]] + v[corners[c, 1]]
-                                   + v[corners[c, 2]]) / 3.0
+            v[n + ids.size + c] = centroid_value(v[corners[c, 0]], v[corners[c, 1]],
+                                                 v[corners[c, 2]])
             known[n + ids.size + c] = True
             todo_c[c] = False
             if not (r.size or c.size):
