@@ -44,6 +44,17 @@ def test_mesh_and_arrays_agree_and_misuse_is_refused():
         quality.min_angles(m, m.triangles)
     with pytest.raises(ValueError, match=r"\(M, 3\)"):
         quality.min_angles(m.points, m.triangles[:, :2])
+    # a -1 measured another triangle (NumPy wraps it), an index too large was NumPy's
+    # IndexError, floats were taken (review)
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    for name in ("min_angles", "angles", "radius_ratios", "aspect_ratios", "areas"):
+        with pytest.raises(ValueError, match=r"triangle 0 \(0, 1, -1\) has a vertex index "
+                                             r"outside 0\.\.3"):
+            getattr(quality, name)(points, [[0, 1, -1]])
+    with pytest.raises(ValueError, match=r"triangle 1 \(1, 3, 4\) has a vertex index"):
+        quality.min_angles(points, [[0, 1, 2], [1, 3, 4]])
+    with pytest.raises(TypeError, match="integer vertex indices, got float64"):
+        quality.min_angles(points, [[0.0, 1.0, 2.0]])
 
 
 @settings(max_examples=30, deadline=None)

@@ -56,6 +56,14 @@ def _arrays(mesh: Mesh | ArrayLike, triangles: ArrayLike | None) -> tuple[NDArra
     if p.ndim != 2 or p.shape[1] != 2 or t.ndim != 2 or t.shape[1] != 3:
         raise ValueError(f"points must be (N, 2) and triangles (M, 3), got {p.shape} and "
                          f"{t.shape}")
+    if t.size and t.dtype.kind not in "iu":
+        raise TypeError(f"triangles must be integer vertex indices, got {t.dtype}")
+    if t.size:  # -1 would measure another triangle (NumPy wraps it around)
+        bad = np.flatnonzero(((t < 0) | (t >= len(p))).any(axis=1))
+        if bad.size:
+            r = int(bad[0])
+            raise ValueError(f"triangle {r} {tuple(t[r].tolist())} has a vertex index outside "
+                             f"0..{len(p) - 1}")
     return p, t
 
 
