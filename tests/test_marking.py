@@ -8,7 +8,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from meshes import jittered_grid
-from qdrefine import Mesh, examples
+from qdrefine import Mesh, examples, marking
 from qdrefine.marking import (
     mark_box,
     mark_dorfler,
@@ -155,3 +155,11 @@ def test_an_integer_mask_is_not_taken_for_indices(tmp_path):
     assert fine.n_triangles > mesh.n_triangles + 300
     assert np.array_equal(qdrefine.refine(mesh, marked=[0, 1]).triangles,
                           qdrefine.refine(mesh, marked=np.arange(mesh.n_triangles) < 2).triangles)
+
+
+def test_mark_tag_takes_integer_tags_only():
+    """``mark_tag(mesh, 1.7)`` marked the triangles of tag 1 (review)."""
+    mesh = examples.plate_with_hole()
+    with pytest.raises(ValueError, match="cell tags are integers, got 1.7"):
+        marking.mark_tag(mesh, 1.7)
+    assert marking.mark_tag(mesh, np.int32(1)).sum() == (mesh.cell_tags == 1).sum()

@@ -41,6 +41,17 @@ def test_valid_mesh_is_read_only_and_normalized():
         ({"edges": [[0, 1]], "edge_tags": [1, 2]}, r"edge_tags must have shape \(1,\)"),
         ({"edges": [[1, 3]], "edge_tags": [1]}, r"edge 0 \(1, 3\) is not an edge"),
         ({"edges": [[1, 9]], "edge_tags": [1]}, r"edge 0 \(1, 9\) has a vertex index"),
+        # coerced before (review): a uint64 beyond int64 wrapped to -1, floats were
+        # truncated, "21" and (2.7, 1.5) became the key (2, 1)
+        ({"cell_tags": np.array([2**64 - 1, 1], np.uint64)}, "cell_tags holds "
+                                                             "18446744073709551615, beyond int64"),
+        ({"edges": np.array([[0, 2**64 - 1]], np.uint64), "edge_tags": [1]},
+         "edges holds 18446744073709551615, beyond int64"),
+        ({"origins": [[0.5, 1.7, 2.2], [0, 2, 3]]}, "origins must hold integers, got dtype "
+                                                    "float64"),
+        ({"physical_names": {"21": "a"}}, r"keys must be \(dimension, tag\) pairs of integers, "
+                                          r"got '21'"),
+        ({"physical_names": {(2.7, 1.5): "a"}}, r"pairs of integers, got \(2.7, 1.5\)"),
     ],
 )
 def test_bad_input_names_the_problem(kwargs, message):

@@ -50,7 +50,10 @@ def mark_tag(mesh: Mesh, tags: int | ArrayLike) -> NDArray[np.bool_]:
     error that lists the tags present."""
     if mesh.cell_tags is None:
         raise ValueError("the mesh has no cell tags")
-    wanted = np.atleast_1d(np.asarray(tags, dtype=np.int64))
+    given = np.atleast_1d(np.asarray(tags))
+    if given.size and given.dtype.kind not in "iu":  # 1.7 marked tag 1
+        raise ValueError(f"cell tags are integers, got {tags!r}")
+    wanted = given.astype(np.int64)
     present = np.unique(mesh.cell_tags)
     missing = np.setdiff1d(wanted, present)
     if missing.size:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from types import MappingProxyType
@@ -58,11 +59,13 @@ def _data(data: Mapping[str, ArrayLike] | None, size: int, what: str, rows: str,
 def _names(names: Mapping[tuple[int, int], str] | None) -> Mapping[tuple[int, int], str]:
     out = {}
     for key, name in (names or {}).items():
-        try:
-            dim, tag = (int(x) for x in key)
+        try:  # integers only: "21" or (2.7, 1.5) became (2, 1)
+            dim, tag = (operator.index(x) for x in key)
+            if isinstance(key, str | bytes):
+                raise TypeError
         except (TypeError, ValueError):
-            raise ValueError(f"physical_names: keys must be (dimension, tag) pairs, got "
-                             f"{key!r}") from None
+            raise ValueError(f"physical_names: keys must be (dimension, tag) pairs of "
+                             f"integers, got {key!r}") from None
         if dim not in (0, 1, 2):
             raise ValueError(f"physical_names: dimension must be 0, 1 or 2, got {dim}")
         out[(dim, tag)] = str(name)
@@ -128,7 +131,12 @@ def _rows_of(rows: ArrayLike | None, triangles: NDArray, name: str
     """``rows`` as an int64 copy with the shape of ``triangles``, or None."""
     if rows is None:
         return None
-    a = np.array(rows, dtype=np.int64)
+    given = np.asarray(rows)
+    if given.size and given.dtype.kind not in "iu":  # 1.7 would become 1
+        raise ValueError(f"{name} must hold integers, got dtype {given.dtype}")
+    if given.size and given.dtype.kind == "u" and given.max() > np.iinfo(np.int64).max:
+        raise ValueError(f"{name} holds {int(given.max())}, beyond int64")
+    a = np.array(given, dtype=np.int64)
     if a.shape != triangles.shape:
         raise ValueError(f"{name} must have shape {triangles.shape}, got {a.shape}")
     return a

@@ -129,6 +129,9 @@ def _integers(found: Findings, kind: str, value: ArrayLike, name: str) -> NDArra
     if a.size and not np.issubdtype(a.dtype, np.integer):
         found.add(kind, f"{name} must hold integers, got dtype {a.dtype}")
         return None
+    if a.size and a.dtype.kind == "u" and a.max() > np.iinfo(np.int64).max:  # would wrap
+        found.add(kind, f"{name} holds {int(a.max())}, beyond int64")
+        return None
     return a.astype(np.int64)
 
 
