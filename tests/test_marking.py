@@ -107,9 +107,31 @@ def test_dorfler_is_a_smallest_bulk_of_the_largest(eta, theta):
     # largest first: every marked value >= every unmarked one
     if m.any() and (~m).any():
         assert eta[m].min() >= eta[~m].max()
+    # smallest: a zero adds nothing (theta = 1 of [0.1] * 10 + [0] took it: the target was
+    # eta.sum(), rounded otherwise than the cumulative sum; review)
+    assert (eta[m] > 0).all()
     # smallest: dropping the smallest marked value falls short
     if m.sum() > 1:
         assert eta[m].sum() - eta[m].min() < theta * total * (1 + 1e-12)
+
+
+def test_dorfler_of_equal_values_and_a_zero():
+    assert mark_dorfler([0.1] * 10 + [0.0], 1.0).tolist() == [True] * 10 + [False]
+
+
+def test_geometric_marks_refuse_bad_arguments():
+    """A 3-D point was NumPy's broadcasting error; a fraction of 2, a negative or NaN radius
+    were taken (review)."""
+    from qdrefine.marking import mark_circle, mark_point, mark_random
+
+    mesh = examples.square(2)
+    for call, message in [(lambda: mark_point(mesh, (0, 0, 0)), "point must be two finite"),
+                          (lambda: mark_point(mesh, (0, 0), np.nan), "radius must be finite"),
+                          (lambda: mark_circle(mesh, (0, 0), -1.0), "radius must be finite"),
+                          (lambda: mark_circle(mesh, (0, 0), 1.0, -2), "size must be finite"),
+                          (lambda: mark_random(mesh, 2.0), r"fraction must be in \[0, 1\]")]:
+        with pytest.raises(ValueError, match=message):
+            call()
 
 
 def test_maximum_strategy_and_bad_indicators():

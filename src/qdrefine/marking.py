@@ -187,16 +187,18 @@ def mark_box(mesh: Mesh, box: ArrayLike) -> NDArray[np.bool_]:
 def mark_point(mesh: Mesh, point: ArrayLike, radius: float = 0.0) -> NDArray[np.bool_]:
     """Triangles with a vertex within ``radius`` of ``point`` (a corner singularity: with
     ``radius = 0`` the triangles around the vertex at ``point``)."""
-    d = np.linalg.norm(mesh.points - np.asarray(point, dtype=np.float64), axis=1)
-    return (d[mesh.triangles] <= radius).any(axis=1)
+    d = np.linalg.norm(mesh.points - _point(point, "point"), axis=1)
+    return (d[mesh.triangles] <= _length(radius, "radius")).any(axis=1)
 
 
 def mark_circle(mesh: Mesh, center: ArrayLike, radius: float, size: float = 0.0
                 ) -> NDArray[np.bool_]:
     """Triangles crossing the circle (vertices on both sides of it, or on it) whose
     longest edge is longer than ``size``: a front refined to a target size."""
+    center, radius, size = _point(center, "center"), _length(radius, "radius"), \
+        _length(size, "size")
     p = mesh.points[mesh.triangles]
-    d = np.linalg.norm(p - np.asarray(center, dtype=np.float64), axis=2)
+    d = np.linalg.norm(p - center, axis=2)
     cross = (d.min(axis=1) <= radius) & (d.max(axis=1) >= radius)
     longest = np.linalg.norm(p - np.roll(p, -1, axis=1), axis=2).max(axis=1)
     return cross & (longest > size)
@@ -207,6 +209,8 @@ def mark_random(mesh: Mesh, fraction: float, seed: int = 0) -> NDArray[np.bool_]
     ``seed``: deterministic for a given mesh, independent of the triangle order, and as
     likely to hit a transition child as any other triangle (the adversarial case for
     local refinement)."""
+    if not 0.0 <= fraction <= 1.0:
+        raise ValueError(f"fraction must be in [0, 1], got {fraction}")
     c = centroids(mesh)
     u = np.sin(c @ np.array([12.9898, 78.233]) + 3.7 * seed) * 43758.5453
     return u - np.floor(u) < fraction
@@ -233,7 +237,9 @@ def mark_dorfler(indicator: ArrayLike, theta: float) -> NDArray[np.bool_]:
     if total == 0:
         return mask
     csum = np.cumsum(eta[order])
-    count = int(np.searchsorted(csum, theta * total, side="left")) + 1
+    # against the cumulative sum's own total: eta.sum() rounds otherwise, and theta = 1
+    # took a zero too (review)
+    count = int(np.searchsorted(csum, theta * csum[-1], side="left")) + 1
     mask[order[: min(count, eta.shape[0])]] = True
     return mask
 
@@ -246,6 +252,19 @@ def mark_maximum(indicator: ArrayLike, theta: float) -> NDArray[np.bool_]:
         raise ValueError(f"theta must be in (0, 1], got {theta}")
     top = eta.max() if eta.size else 0.0
     return (eta >= theta * top) & (eta > 0)
+
+
+def _point(point: ArrayLike, name: str) -> NDArray[np.float64]:
+    p = np.asarray(point, dtype=np.float64)
+    if p.shape != (2,) or not np.isfinite(p).all():
+        raise ValueError(f"{name} must be two finite coordinates (x, y), got {point!r}")
+    return p
+
+
+def _length(value: float, name: str) -> float:
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+    return float(value)
 
 
 def _indicator(indicator: ArrayLike) -> NDArray[np.float64]:
