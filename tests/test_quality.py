@@ -156,3 +156,16 @@ def test_ratios_at_every_scale(scale):
     equilateral = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, s]]) * scale
     assert quality.radius_ratios(equilateral, [[0, 1, 2]])[0] <= 1.0
     assert quality.aspect_ratios(equilateral, [[0, 1, 2]])[0] >= 1.0
+
+
+def test_report_compare_takes_one_scheme_name_and_checks_levels():
+    """``compare(mesh, "7t-qd", levels=0)`` gave rows for the schemes '7', 't', '-', ...;
+    ``levels=1.5`` was a raw TypeError (review)."""
+    from qdrefine import report
+
+    mesh = examples.square(2)
+    assert [r["scheme"] for r in report.compare(mesh, "7T-QD", levels=1)] == ["7t-qd"] * 2
+    with pytest.raises(ValueError, match="levels must be an integer, got 1.5"):
+        report.compare(mesh, levels=1.5)
+    with pytest.raises(ValueError, match="unknown scheme '8t'"):
+        report.compare(mesh, ["8t"], levels=0)

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from . import quality as q
+from .arguments import as_count
 from .memory import check_needed, memory_needed
 from .mesh import Mesh
 from .refine import refine
@@ -164,9 +165,10 @@ def compare(mesh: Mesh, schemes: Sequence[str] | None = None, levels: int = 2, *
     ``scheme, level, triangles, points, min_angle, mean_min_angle, similarity_classes``.
     ``step(scheme, level)`` is called after each level (for progress bars).
     """
-    names = list(scheme_names() if schemes is None else schemes)
-    if levels < 0:
-        raise ValueError(f"levels must be >= 0, got {levels}")
+    if isinstance(schemes, str):  # one scheme, not its characters
+        schemes = [schemes]
+    names = [get_scheme(n).name for n in (scheme_names() if schemes is None else schemes)]
+    levels = as_count(levels, "levels")
     check_study_memory(mesh, names, levels, "comparing the schemes")
     rows = []
     for name in names:
