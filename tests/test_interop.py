@@ -104,6 +104,15 @@ def test_triangulation(mesh):
     tri = interop.to_triangulation(mesh)
     np.testing.assert_array_equal(tri.triangles, mesh.triangles)
     np.testing.assert_array_equal(tri.x, mesh.points[:, 0])
+    # and back (the README's "both ways"; there was no way back, review): masked triangles
+    # are left out, their points stay
+    back = interop.from_triangulation(tri)
+    assert np.array_equal(back.points, mesh.points)
+    assert np.array_equal(back.triangles, mesh.triangles)
+    tri.set_mask(np.arange(mesh.n_triangles) % 2 == 0)
+    half = interop.from_triangulation(tri)
+    assert np.array_equal(half.triangles, mesh.triangles[1::2])
+    assert half.n_points == mesh.n_points
 
 
 def _two_tags_one_name():

@@ -52,12 +52,23 @@ def test_valid_mesh_is_read_only_and_normalized():
         ({"physical_names": {"21": "a"}}, r"keys must be \(dimension, tag\) pairs of integers, "
                                           r"got '21'"),
         ({"physical_names": {(2.7, 1.5): "a"}}, r"pairs of integers, got \(2.7, 1.5\)"),
+        # taken before (review): strings and booleans as coordinates, masks dropped
+        ({"points": SQUARE.astype(str)}, "points must be numbers, got dtype <U32"),
+        ({"points": SQUARE.astype(bool)}, "points must be numbers, got dtype bool"),
+        ({"triangles": np.ma.array(TRIS, mask=[[0, 0, 0], [1, 1, 1]])},
+         "triangles has masked entries"),
     ],
 )
 def test_bad_input_names_the_problem(kwargs, message):
     args = {"points": SQUARE, "triangles": TRIS} | kwargs
     with pytest.raises(ValueError, match=message):
         Mesh(**args)
+
+
+def test_data_must_be_a_mapping():
+    with pytest.raises(TypeError, match="point_data must be a mapping of names to arrays, "
+                                        "got list"):
+        Mesh(SQUARE, TRIS, point_data=[("u", np.zeros(4))])
 
 
 def test_examples_are_valid():

@@ -27,7 +27,8 @@ from .io.meshio_formats import meshio_mesh, raw_from_meshio
 from .mesh import Mesh
 from .numbering import edge_ids
 
-__all__ = ["to_meshio", "from_meshio", "to_skfem", "from_skfem", "to_triangulation"]
+__all__ = ["to_meshio", "from_meshio", "to_skfem", "from_skfem", "to_triangulation",
+           "from_triangulation"]
 
 #: The name a converted peer mesh has in error messages.
 _PEER = Path("<{}>")
@@ -124,6 +125,18 @@ def to_triangulation(mesh: Mesh):
     from matplotlib.tri import Triangulation
 
     return Triangulation(mesh.points[:, 0], mesh.points[:, 1], np.asarray(mesh.triangles))
+
+
+def from_triangulation(tri) -> Mesh:
+    """The :class:`Mesh` of a ``matplotlib.tri.Triangulation``: its points and its
+    triangles but the masked ones (clockwise ones flipped, with a warning); the points of
+    masked triangles stay, unused."""
+    points = np.column_stack([np.asarray(tri.x, dtype=np.float64),
+                              np.asarray(tri.y, dtype=np.float64)])
+    triangles = np.asarray(tri.triangles, dtype=np.int64)
+    if tri.mask is not None:
+        triangles = triangles[~np.asarray(tri.mask, dtype=bool)]
+    return mesh_of(RawMesh(Path(str(_PEER).format("Triangulation")), points, triangles))
 
 
 def _facet_ids(facets: NDArray, edges: NDArray, n: int) -> NDArray[np.int64]:

@@ -38,6 +38,9 @@ def _data(data: Mapping[str, ArrayLike] | None, size: int, what: str, rows: str,
           reserved: tuple[str, ...] = ()) -> Mapping[str, NDArray]:
     """Copies of the arrays of ``data``, each with ``size`` rows, in a read-only mapping;
     the names ``reserved`` are refused."""
+    if data is not None and not isinstance(data, Mapping):
+        raise TypeError(f"{what} must be a mapping of names to arrays, got "
+                        f"{type(data).__name__}")
     out = {}
     for key, value in (data or {}).items():
         a = np.array(value)

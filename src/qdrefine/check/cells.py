@@ -22,9 +22,15 @@ __all__ = ["points", "triangles", "in_range", "coordinates", "orientation", "cel
 
 def points(found: Findings, points: ArrayLike) -> NDArray | None:
     try:
+        if _masked(points):  # np.asarray drops the mask
+            found.add("points", "points has masked entries; give a plain array")
+            return None
         given = np.asarray(points)
         if given.dtype.kind == "c":  # the cast would drop the imaginary parts
             found.add("points", f"points must be real numbers, got dtype {given.dtype}")
+            return None
+        if given.size and given.dtype.kind not in "iuf":  # "1.5" and True were taken
+            found.add("points", f"points must be numbers, got dtype {given.dtype}")
             return None
         p = np.array(given, dtype=np.float64, copy=True)
     except (TypeError, ValueError) as exc:
@@ -36,7 +42,15 @@ def points(found: Findings, points: ArrayLike) -> NDArray | None:
     return p
 
 
+def _masked(value: ArrayLike) -> bool:
+    return isinstance(value, np.ma.MaskedArray) and bool(np.ma.getmaskarray(value).any())
+
+
 def triangles(found: Findings, triangles: ArrayLike) -> NDArray | None:
+    if _masked(triangles):  # np.asarray drops the mask: masked triangles would be kept
+        found.add("triangles", "triangles has masked entries; give a plain array of the "
+                  "triangles to keep")
+        return None
     try:
         t = np.asarray(triangles)
     except (TypeError, ValueError) as exc:
