@@ -212,6 +212,12 @@ def test_refinement_stays_in_the_range_of_exact_predicates():
         with pytest.raises(ValueError, match=r"refining this mesh makes new point 3 at "
                                              r"\([46]e-101, 0\.0\), below the supported range"):
             call()
+    # a second local level reached it inside the step, where the message named a "vertex 0"
+    # that is no vertex of the input (review)
+    wide = Mesh([[0, 0], [1e100, 0], [0, 1e-100], [1e100, 1e100]], [[0, 1, 2], [1, 3, 2]])
+    with pytest.raises(ValueError, match=r"^refining this mesh makes a new point at \(.*\), "
+                                         r"below the supported range"):
+        refine(wide, marked=[0], levels=2)
     small = Mesh(tiny.points * 1e17, tiny.triangles)
     fine = refine(small)
     assert Mesh(fine.points, fine.triangles).n_triangles == 7  # valid input again

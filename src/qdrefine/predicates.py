@@ -99,16 +99,19 @@ def check_coordinates(points: np.ndarray, what: str = "point") -> None:
         )
 
 
-def below_range(index: int, point, smallest: float) -> ValueError:
-    """The error of a refinement whose new point ``index`` at ``point`` has a nonzero
-    coordinate below :data:`COORDINATE_RANGE` (the input's smallest nonzero coordinate
-    magnitude ``smallest`` was close to the range's lower end)."""
+def below_range(index: int | None, point, smallest: float | None) -> ValueError:
+    """The error of a refinement whose new point ``index`` (None: not numbered yet) at
+    ``point`` has a nonzero coordinate below :data:`COORDINATE_RANGE` (the input's
+    smallest nonzero coordinate magnitude ``smallest``, where known, was close to the
+    range's lower end)."""
     lo, hi = COORDINATE_RANGE
-    return ValueError(f"refining this mesh makes new point {index} at "
+    which = "a new point" if index is None else f"new point {index}"
+    also = "" if smallest is None else \
+        f"; the mesh's smallest nonzero coordinate is {smallest:g}"
+    return ValueError(f"refining this mesh makes {which} at "
                       f"{tuple(float(x) for x in point)}, below the supported range (nonzero "
                       f"coordinates of magnitude {lo:g} to {hi:g}, where the predicates are "
-                      f"exact); the mesh's smallest nonzero coordinate is {smallest:g}: "
-                      "scale the mesh up")
+                      f"exact){also}: scale the mesh up")
 
 
 def new_scratch() -> np.ndarray:

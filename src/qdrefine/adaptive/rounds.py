@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..partition import partition_many
+from ..predicates import COORDINATE_RANGE, below_range
 from ..schemes import Scheme
 from .edgekeys import edge_keys, lookup, lookup_sorted
 from .families import Families
@@ -202,7 +203,13 @@ def waiting_upgrades(points: NDArray[np.float64], fam: Families, families: NDArr
 
 
 def full_quality(corners: NDArray[np.float64], sch: Scheme) -> NDArray[np.float64]:
-    """Smallest angle (degrees) of the scheme's partition of triangles ``(G, 3, 2)``."""
+    """Smallest angle (degrees) of the scheme's partition of triangles ``(G, 3, 2)``
+    (children of this step: a corner below the coordinate range is the refinement's new
+    point, said as uniform refinement says it)."""
+    a = np.abs(corners.reshape(-1, 2))
+    low = ((a < COORDINATE_RANGE[0]) & (a != 0)).any(axis=1)
+    if low.any():
+        raise below_range(None, corners.reshape(-1, 2)[np.flatnonzero(low)[0]], None)
     points, tris = partition_many(corners, sch, strict=False)
     return min_angles(points[np.arange(tris.shape[0])[:, None, None], tris]).min(axis=1)
 
