@@ -133,10 +133,24 @@ def test_tags_of_one_physical_name_are_one_skfem_set():
 def test_a_physical_name_meshio_cannot_hold_is_refused():
     """meshio's field_data maps a name to one group: one of two groups of one name was
     lost without a word (review)."""
+    one_name = _two_tags_one_name().replace(physical_names={(2, 1): "steel", (2, 2): "steel"})
     with pytest.raises(ValueError, match=r"the physical name 'steel' names the groups "
                                          r"\(dim, tag\) \(2, 1\) and \(2, 2\)"):
-        interop.to_meshio(_two_tags_one_name().replace(
-            physical_names={(2, 1): "steel", (2, 2): "steel"}))
+        interop.to_meshio(one_name)
+
+
+def test_a_physical_name_xdmf_cannot_hold_is_refused(tmp_path):
+    """XDMF keeps the names as the map meshio reads as field_data: one of two groups of one
+    name (or one name on dimensions 1 and 2) came back without its name (review). Refused,
+    no file; .msh and .vtu keep both."""
+    one_name = _two_tags_one_name().replace(physical_names={(1, 1): "wall", (2, 1): "wall"})
+    with pytest.raises(ValueError, match=r"m\.xdmf: the physical name 'wall' names the groups "
+                                         r"\(dim, tag\) \(1, 1\) and \(2, 1\)"):
+        qdrefine.write(tmp_path / "m.xdmf", one_name)
+    assert list(tmp_path.iterdir()) == []
+    for ext in (".msh", ".vtu"):
+        qdrefine.write(tmp_path / f"m{ext}", one_name)
+        assert qdrefine.read(tmp_path / f"m{ext}").physical_names == one_name.physical_names
 
 
 def test_overlapping_skfem_subdomains_are_refused():

@@ -23,6 +23,7 @@ from ._core import (
     TAG_NAMES,
     RawMesh,
     atomic_path,
+    check_one_group_per_name,
     check_regular,
     from_blocks,
     mesh_data,
@@ -307,15 +308,8 @@ def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
 def _field_data(physical_names: dict[tuple[int, int], str]) -> dict[str, NDArray]:
     """meshio's ``field_data`` (``name -> [tag, dim]``: one group per name) of the physical
     names; a name given to two groups is refused (one of them would be lost)."""
-    field_data: dict[str, NDArray] = {}
-    for (dim, tag), name in sorted(physical_names.items()):
-        if name in field_data:
-            other = tuple(int(v) for v in field_data[name][::-1])
-            raise ValueError(f"the physical name {name!r} names the groups (dim, tag) {other} "
-                             f"and {(dim, tag)}; meshio's field_data holds one group per name: "
-                             "rename one")
-        field_data[name] = np.array([tag, dim])
-    return field_data
+    check_one_group_per_name(physical_names, "")
+    return {name: np.array([tag, dim]) for (dim, tag), name in physical_names.items()}
 
 
 def raw_from_meshio(m, path: Path) -> RawMesh:

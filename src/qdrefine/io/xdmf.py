@@ -29,6 +29,7 @@ from ._core import (
     RawMesh,
     atomic_paths,
     cannot_write,
+    check_one_group_per_name,
     check_regular,
     mesh_data,
 )
@@ -144,7 +145,9 @@ _NOT_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]")
 
 
 def _check_names(path: Path, mesh) -> None:
-    """Refuse names that the XML file cannot hold (control characters)."""
+    """Refuse names that the XML file cannot hold (control characters), and a physical name
+    given to two groups (meshio reads the names as ``field_data``: one group per name)."""
+    check_one_group_per_name(mesh.physical_names, f"{path}: ")
     names = [("physical name", name) for name in (mesh.physical_names or {}).values()]
     names += [("point data name", name) for name in (mesh.point_data or {})]
     names += [("cell data name", name) for name in (mesh.cell_data or {})]
