@@ -65,6 +65,17 @@ def test_bad_input_names_the_problem(kwargs, message):
         Mesh(**args)
 
 
+def test_points_as_python_numbers_of_any_kind():
+    """Object arrays of numbers (Fractions, Python ints) are numbers (review of the check
+    that refuses strings and booleans)."""
+    from fractions import Fraction
+
+    exact = np.array([[Fraction(v) for v in row] for row in SQUARE.tolist()], dtype=object)
+    assert np.array_equal(Mesh(exact, TRIS).points, SQUARE)
+    with pytest.raises(ValueError, match="points must be numbers, got dtype object"):
+        Mesh(np.array([[0, 0], [1, 0], [1, "1"], [0, 1]], dtype=object), TRIS)
+
+
 def test_data_must_be_a_mapping():
     with pytest.raises(TypeError, match="point_data must be a mapping of names to arrays, "
                                         "got list"):

@@ -29,7 +29,9 @@ def points(found: Findings, points: ArrayLike) -> NDArray | None:
         if given.dtype.kind == "c":  # the cast would drop the imaginary parts
             found.add("points", f"points must be real numbers, got dtype {given.dtype}")
             return None
-        if given.size and given.dtype.kind not in "iuf":  # "1.5" and True were taken
+        if given.size and (given.dtype.kind in "bUSV" or (given.dtype.kind == "O" and any(
+                isinstance(x, str | bytes | bool | np.bool_) for x in given.flat))):
+            # "1.5" and True were taken as coordinates
             found.add("points", f"points must be numbers, got dtype {given.dtype}")
             return None
         p = np.array(given, dtype=np.float64, copy=True)
