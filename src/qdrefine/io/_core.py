@@ -226,28 +226,6 @@ TAG_NAMES = ("tag", "gmsh:physical", "medit:ref", "cell_tags")
 SKIPPED_NAMES = ("gmsh:geometrical", "gmsh:dim_tags")
 
 
-def shared_name(physical_names) -> tuple[str, tuple[int, int], tuple[int, int]] | None:
-    """The first physical name given to two groups ``(dim, tag)``, with the two groups, or
-    None: formats whose names map to one group each (meshio's ``field_data``, XDMF's
-    ``Information`` map that meshio reads as it) cannot hold it."""
-    seen: dict[str, tuple[int, int]] = {}
-    for group, name in sorted((physical_names or {}).items()):
-        if name in seen:
-            return name, seen[name], group
-        seen[name] = group
-    return None
-
-
-def check_one_group_per_name(physical_names, where: str) -> None:
-    """Refuse physical names that :func:`shared_name` finds (``where`` starts the line)."""
-    found = shared_name(physical_names)
-    if found is not None:
-        name, first, second = found
-        raise ValueError(f"{where}the physical name {name!r} names the groups (dim, tag) "
-                         f"{first} and {second}; this format holds one group per name "
-                         "(meshio's field_data): rename one")
-
-
 def mesh_data(mesh, path: PathLike | None = None, reserved: tuple[str, ...] = ()
               ) -> tuple[dict[str, NDArray], dict[str, NDArray]]:
     """Point data and cell data of ``mesh`` to write, the history (transitions, origins)

@@ -23,7 +23,6 @@ from ._core import (
     TAG_NAMES,
     RawMesh,
     atomic_path,
-    check_one_group_per_name,
     check_regular,
     from_blocks,
     mesh_data,
@@ -303,6 +302,28 @@ def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
     field_data = _field_data(mesh.physical_names or {}) if names else None
     return meshio.Mesh(points, cells, point_data=point_data, cell_data=cell_data,
                        field_data=field_data)
+
+
+def shared_name(physical_names) -> tuple[str, tuple[int, int], tuple[int, int]] | None:
+    """The first physical name given to two groups ``(dim, tag)``, with the two groups, or
+    None: formats whose names map to one group each (meshio's ``field_data``, XDMF's
+    ``Information`` map that meshio reads as it) cannot hold it."""
+    seen: dict[str, tuple[int, int]] = {}
+    for group, name in sorted((physical_names or {}).items()):
+        if name in seen:
+            return name, seen[name], group
+        seen[name] = group
+    return None
+
+
+def check_one_group_per_name(physical_names, where: str) -> None:
+    """Refuse physical names that :func:`shared_name` finds (``where`` starts the line)."""
+    found = shared_name(physical_names)
+    if found is not None:
+        name, first, second = found
+        raise ValueError(f"{where}the physical name {name!r} names the groups (dim, tag) "
+                         f"{first} and {second}; this format holds one group per name "
+                         "(meshio's field_data): rename one")
 
 
 def _field_data(physical_names: dict[tuple[int, int], str]) -> dict[str, NDArray]:

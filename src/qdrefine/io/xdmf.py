@@ -29,10 +29,10 @@ from ._core import (
     RawMesh,
     atomic_paths,
     cannot_write,
-    check_one_group_per_name,
     check_regular,
     mesh_data,
 )
+from .meshio_formats import check_one_group_per_name
 
 __all__ = ["heavy_data_files", "read", "write"]
 
