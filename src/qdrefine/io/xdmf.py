@@ -65,8 +65,8 @@ def _heavy_items(text: bytes) -> list[tuple[str, str, str]]:
     for attributes, body in _ITEM.findall(text):
         found = {k.decode().lower(): html.unescape(v.decode(errors="replace"))
                  for k, v in _ATTRIBUTE.findall(attributes)}
-        text = html.unescape(body.decode(errors="replace")).strip()  # a&amp;b.h5: a&b.h5
-        name, sep, dataset = text.rpartition(":/")
+        content = html.unescape(body.decode(errors="replace")).strip()  # a&amp;b.h5: a&b.h5
+        name, sep, dataset = content.rpartition(":/")
         if found.get("format", "").upper() == "HDF" and sep:
             items.append((name, "/" + dataset, found.get("dimensions", "")))
     return items
