@@ -279,6 +279,10 @@ def test_report_sentences_follow_the_numbers(ctx):
     assert "The wrong y-coordinate of the paper's ADP circumcentre does not change" in text
     e = ctx["res"].worst["pentagon"]
     assert f"{e.value:.12f}" in text and f"{e.bound:.1e}" in text
+    # the method's parameters as computed, not fixed text (review: "grid spacing 1/1200"
+    # was written whatever the step; this context's is 1/300)
+    assert "grid spacing 1/300)" in text and "grid spacing 1/1200" not in text
+    assert "coordinates rounded to 1e-9)" in text and "bisected to 2e-16)" in text
 
 
 def test_convergence_table_gives_the_largest_estimate_of_all_regions(ctx):

@@ -151,13 +151,17 @@ def _fan_difference(a: str, b: str, measure: str) -> Callable[[NDArray, NDArray]
     return g
 
 
+#: Width below which a sign change of a comparison is located (the bisection stops).
+ROOT_TOLERANCE = 2e-16
+
+
 def _bisect(g, x, lo, hi, slo, iterations=60):
     for _ in range(iterations):
         mid = 0.5 * (lo + hi)
         same = (g(x, mid) > 0) == slo
         lo = np.where(same, mid, lo)
         hi = np.where(same, hi, mid)
-        if np.all(hi - lo <= 2e-16):
+        if np.all(hi - lo <= ROOT_TOLERANCE):
             break
     return 0.5 * (lo + hi)
 

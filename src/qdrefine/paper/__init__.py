@@ -87,7 +87,8 @@ def compute_context(step: float = 1 / 1200, tol: float = 1e-10, iterated_grid: i
     lemmas, qhull = lemma_checks(), find_qhull_failure()
     return {"res": res, "sample": sample, "m": m, "lemmas": lemmas,
             "qhull": qhull, "iterated": its, "search": search,
-            "iterated_seconds": iterated_s, "claims": PAPER_CLAIMS, "table": PAPER_TABLE1}
+            "iterated_seconds": iterated_s, "claims": PAPER_CLAIMS, "table": PAPER_TABLE1,
+            "step": step}
 
 
 def write_all(outdir: str | Path, figures: bool = True,

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import diagram as dg
+from ..diagram.extrema import CORNERS
 from ..io import atomic_path
 from ..partition import partition
 from ..stencil import SEVEN
@@ -76,6 +77,11 @@ def _half_outline(ax, full=False):
         ax.plot([0, 0.5], [0, 0], "k", lw=1)
         ax.plot([0.5, 0.5], [0, math.sqrt(3) / 2], "k", lw=1)
     ax.set_aspect("equal")
+
+
+#: Where the II/III arc ends: the corner it shares with the I/III arc; beyond it, in
+#: region I, the circle bounds nothing (it was drawn on to x = 1/2).
+II_III_END = CORNERS["I-III / II-III"][0]
 
 
 def _arc(ax, cx, r, x0, x1, **kw):
@@ -202,7 +208,7 @@ def fig06(ctx):
     ax.imshow(img, origin="lower", extent=(0, 0.5, 0, 0.87), cmap="Greys", vmin=0, vmax=1.3,
               aspect="equal", interpolation="nearest")
     _arc(ax, 1 / 3, 1 / 3, 0, 0.5, color="C0", lw=2, label="(x-1/3)^2+y^2=1/9")
-    _arc(ax, 6 / 5, 4 / 5, 0.4, 0.5, color="C3", lw=2, label="(x-6/5)^2+y^2=16/25")
+    _arc(ax, 6 / 5, 4 / 5, 0.4, II_III_END, color="C3", lw=2, label="(x-6/5)^2+y^2=16/25")
     for k, (px, py) in {"I": (0.15, 0.5), "II": (0.25, 0.15), "III": (0.465, 0.12)}.items():
         ax.text(px, py, k, fontsize=14, ha="center")
     ax.legend(loc="upper left", fontsize=8)
@@ -217,7 +223,7 @@ def fig07(ctx):
     _half_outline(ax)
     _region_image(ax, dg._pred("shaded"), (0, 0.5, 0, 0.87), n=900)
     _arc(ax, 1 / 3, 1 / 3, 0, 0.5, color="0.6", lw=1)
-    _arc(ax, 6 / 5, 4 / 5, 0.4, 0.5, color="0.6", lw=1)
+    _arc(ax, 6 / 5, 4 / 5, 0.4, II_III_END, color="0.6", lw=1)
     _arc(ax, 1, 1 / math.sqrt(3), 1 - 1 / math.sqrt(3), 0.5, color="C3", lw=1.5,
          label="(x-1)^2+y^2=1/3")
     ax.legend(loc="upper left", fontsize=8)
@@ -266,7 +272,7 @@ def _shaded_maps(ctx):
 
 def _boundaries(ax):
     _arc(ax, 1, 1 / math.sqrt(3), 1 - 1 / math.sqrt(3), 0.5, color="0.4", lw=0.8)
-    _arc(ax, 6 / 5, 4 / 5, 0.4, 0.5, color="0.4", lw=0.8)
+    _arc(ax, 6 / 5, 4 / 5, 0.4, II_III_END, color="0.4", lw=0.8)
     _arc(ax, 1 / 3, 1 / 3, 0.4, 0.5, color="0.4", lw=0.8)
     ax.set_xlim(ZOOM[0], ZOOM[1])
     ax.set_ylim(ZOOM[2], ZOOM[3])

@@ -71,6 +71,8 @@ class Iterated:
         Total area share of the level's descendants (1 up to rounding: a check).
     shapes : (C, 2) float
         Diagram points of the classes of the last level; ``owner (C,)`` their triangle.
+    digits : int
+        Decimal digits to which diagram coordinates were rounded to tell classes apart.
 
     Notes
     -----
@@ -90,6 +92,7 @@ class Iterated:
     area: NDArray[np.float64]
     shapes: NDArray[np.float64]
     owner: NDArray[np.int64]
+    digits: int = 9
 
     @property
     def levels(self) -> int:
@@ -180,7 +183,8 @@ def iterate(scheme: str, points: ArrayLike, levels: int = 6, digits: int = 9) ->
         new[level] = np.bincount(sid[fresh], minlength=n)
         quality[level] = np.bincount(sid, weights=weight * ratio, minlength=n)
         area[level] = np.bincount(sid, weights=weight, minlength=n)
-    return Iterated(name, p, worst, classes, new, quality, area, np.column_stack([x, y]), sid)
+    return Iterated(name, p, worst, classes, new, quality, area, np.column_stack([x, y]), sid,
+                    digits)
 
 
 def worst_ratio(scheme: str = "7t-qd", levels: int = 6, samples: int | ArrayLike = 40

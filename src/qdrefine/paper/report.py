@@ -7,12 +7,15 @@ Each section function takes the context dict built by :func:`qdrefine.paper.writ
 
 from __future__ import annotations
 
+import inspect
 import platform
 
 import numpy as np
 
 from .. import diagram as dg
 from ..diagram.extrema import READINGS
+from ..diagram.quadrature import ROOT_TOLERANCE
+from .sample import region_sample
 from .table1 import our_chain, relations, row_verdict, table_region
 from .verdicts import agree, claim_rows, pct
 
@@ -41,7 +44,8 @@ def method(ctx) -> list[str]:
         "arc ends and intersections and each slab is integrated in closed form.",
         "- **Regions bounded by angle-equality curves** (C1, C2, C3): for each x, the arcs "
         "(closed form) and the roots of the fixed-fan angle differences (sampled sign changes, "
-        "graded towards the arcs, bisected to 2e-16) cut the vertical line; the member length "
+        f"graded towards the arcs, bisected to {ROOT_TOLERANCE:g}) cut the vertical line; the "
+        "member length "
         f"is integrated with adaptive Gauss-Kronrod (7,15), tol {res.tol:g}.",
         f"- **Largest error estimate of any fraction: {eb:.1e}** (requirement: 1e-6).",
         "- **Extrema** (worst ratios): certified, see the section below; error bound "
@@ -67,6 +71,15 @@ def areas(ctx) -> list[str]:
     return out
 
 
+def _spacing(step: float | None) -> str:
+    """The sample grid's spacing as the report writes it (``1/1200``; ``None``: the
+    default of :func:`~qdrefine.paper.sample.region_sample`)."""
+    if step is None:
+        step = inspect.signature(region_sample).parameters["step"].default
+    n = round(1 / step)
+    return f"1/{n}" if abs(n * step - 1) < 1e-12 else f"{step:g}"
+
+
 def table1(ctx) -> list[str]:
     res, s, m = ctx["res"], ctx["sample"], ctx["m"]
     f = res.fractions
@@ -74,7 +87,8 @@ def table1(ctx) -> list[str]:
     tau = tol.tau
     out = ["## Table 1, recomputed\n",
            "The paper's legend: `<`, `>` mark a better partition, `=` a *similar* one. The gap "
-           "of a relation is the region mean of the difference (degrees; grid spacing 1/1200). "
+           "of a relation is the region mean of the difference (degrees; grid spacing "
+           f"{_spacing(ctx.get('step'))}). "
            f"**Tolerance for 'similar' from the paper's own usage: {tau:.2f} deg**, the "
            f"smallest gap Table 1 writes as a difference ({tol.strict_at}); `=` is read as a "
            "gap below it. "
@@ -288,7 +302,8 @@ def iterated(ctx) -> list[str]:
     out = ["## Iterated refinement (not in the paper)\n",
            f"{n} triangles on a grid over H (uniform in area), each refined {levels} times "
            "uniformly by every scheme; descendants tracked by similarity class (diagram "
-           "coordinates rounded to 1e-9) with their share of the initial area. *worst*: the "
+           f"coordinates rounded to 1e-{any_it.digits}) with their share of the initial area. "
+           "*worst*: the "
            "smallest min angle of any descendant of levels 1..k over the initial min angle, "
            "smallest over the triangles; *classes*: median / largest number of shapes at level "
            "k; *quality*: area-weighted mean of the descendants' min angle over the initial "
@@ -326,7 +341,9 @@ def iterated(ctx) -> list[str]:
                    f"lower it on {lowered} of {n} triangles (largest drop {drop.max():.3g})")
                 + f". Proven for the {pct(closed.mean(), 1)} of triangles whose shapes closed: "
                 f"every descendant at every level is one of finitely many shapes, so the ratio "
-                f"is at least {bound_closed:.6f} for all levels. Counterexample search (zoom "
+                f"is at least {bound_closed:.6f} for all levels"
+                + _still_open(it)
+                + ". Counterexample search (zoom "
                 f"around the worst sample, and needles at heights "
                 f"{', '.join(f'{e:g}' for e in sr['edge'])}): worst {sr['worst']:.6f} at "
                 f"({sr['point'][0]:.6f}, {sr['point'][1]:.6f}), by level "
@@ -338,6 +355,21 @@ def iterated(ctx) -> list[str]:
         out.append(text)
     out.append("")
     return out
+
+
+def _still_open(it) -> str:
+    """Where the triangles whose shapes did not close lie (diagram height), how many shapes
+    they reach at the last level, and their share of the quality sum."""
+    open_ = ~it.closed
+    if not open_.any():
+        return ""
+    y, flat = it.points[:, 1], it.points[:, 1] < 0.1
+    quality = it.quality[-1]
+    return (f"; the other {pct(open_.mean(), 1)} lie at y <= {y[open_].max():.4f} "
+            f"({pct((y[open_] < 0.1).mean(), 1)} of them below y = 0.1), with a median of "
+            f"{np.median(it.classes[-1][open_]):.0f} shapes at level {it.levels}; the "
+            f"triangles below y = 0.1 ({pct(flat.mean(), 1)} of the sample) give "
+            f"{pct(quality[flat].sum() / quality.sum(), 1)} of the quality sum")
 
 
 def figures(ctx) -> list[str]:

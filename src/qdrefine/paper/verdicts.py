@@ -284,7 +284,8 @@ def claim_rows(m: Measurements, claims: dict = PAPER_CLAIMS) -> list[Claim]:
     le_lower = float((s["mean 7t-le"][c1] < s["mean 7t-qd"][c1]).mean())
     rows.append(Claim("shares", f"\"{claims['le_region_mean_lower']}\"",
                       f"on {pct(le_lower, 2)} of C1 (grid)",
-                      "confirmed" if le_lower == 1.0 else "partly", ""))
+                      "confirmed" if le_lower == 1.0 else ("partly" if le_lower > 0 else
+                                                           "wrong"), ""))
     same = res.extra_areas["I_II_differ"]
     rows.append(Claim("shares", f"\"{claims['regions_I_II_equal']}\"",
                       f"area where they differ in I and II: {same:.1e}",
