@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .check import find, index_dtype
+from .check import find, index_dtype, not_int64
 from .numbering import EdgeBuckets, edge_ids
 from .predicates import orient_signs
 
@@ -63,9 +63,9 @@ def _names(names: Mapping[tuple[int, int], str] | None) -> Mapping[tuple[int, in
     out = {}
     for key, name in (names or {}).items():
         try:  # integers only: "21" or (2.7, 1.5) became (2, 1)
-            dim, tag = (operator.index(x) for x in key)
-            if isinstance(key, str | bytes):
+            if isinstance(key, str | bytes):  # bytes iterate as integers
                 raise TypeError
+            dim, tag = (operator.index(x) for x in key)
         except (TypeError, ValueError):
             raise ValueError(f"physical_names: keys must be (dimension, tag) pairs of "
                              f"integers, got {key!r}") from None
@@ -135,10 +135,9 @@ def _rows_of(rows: ArrayLike | None, triangles: NDArray, name: str
     if rows is None:
         return None
     given = np.asarray(rows)
-    if given.size and given.dtype.kind not in "iu":  # 1.7 would become 1
-        raise ValueError(f"{name} must hold integers, got dtype {given.dtype}")
-    if given.size and given.dtype.kind == "u" and given.max() > np.iinfo(np.int64).max:
-        raise ValueError(f"{name} holds {int(given.max())}, beyond int64")
+    problem = not_int64(given, name)
+    if problem is not None:
+        raise ValueError(problem)
     a = np.array(given, dtype=np.int64)
     if a.shape != triangles.shape:
         raise ValueError(f"{name} must have shape {triangles.shape}, got {a.shape}")

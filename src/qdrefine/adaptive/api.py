@@ -144,9 +144,8 @@ def origin_rows(mesh: Mesh) -> NDArray[np.int64]:
     if mesh.transitions is None:
         return mesh.triangles  # read as they are (int32 or int64)
     rows = mesh.triangles.astype(np.int64)
-    if mesh.transitions is not None:
-        green = mesh.transitions[:, 0] >= 0
-        rows[green] = mesh.transitions[green]
+    green = mesh.transitions[:, 0] >= 0
+    rows[green] = mesh.transitions[green]
     return rows
 
 

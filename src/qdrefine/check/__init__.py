@@ -31,13 +31,14 @@ from . import cells as cell_checks
 from . import edges as edge_checks
 from . import points as point_checks
 from .boundary import hanging_nodes
+from .cells import not_int64
 from .edges import Topology, bucket_scan, edge_scan
 from .points import NEAR_DUPLICATE, duplicate_pairs, near_duplicates
 from .report import KINDS, MIN_ANGLE, Checked, Findings, Problem, Stop
 
 __all__ = ["KINDS", "MIN_ANGLE", "NEAR_DUPLICATE", "Checked", "Problem", "bucket_scan",
            "duplicate_pairs", "edge_scan", "find", "hanging_nodes", "index_dtype",
-           "near_duplicates"]
+           "near_duplicates", "not_int64"]
 
 
 def find(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | None = None,

@@ -142,13 +142,22 @@ def _integers(found: Findings, kind: str, value: ArrayLike, name: str) -> NDArra
     except (TypeError, ValueError) as exc:
         found.add(kind, f"{name} must hold integers ({exc})")
         return None
-    if a.size and not np.issubdtype(a.dtype, np.integer):
-        found.add(kind, f"{name} must hold integers, got dtype {a.dtype}")
-        return None
-    if a.size and a.dtype.kind == "u" and a.max() > np.iinfo(np.int64).max:  # would wrap
-        found.add(kind, f"{name} holds {int(a.max())}, beyond int64")
+    problem = not_int64(a, name)
+    if problem is not None:
+        found.add(kind, problem)
         return None
     return a.astype(np.int64)
+
+
+def not_int64(a: NDArray, name: str) -> str | None:
+    """Why the array ``a`` cannot be taken as int64 values (``name`` starts the message):
+    not integers (1.7 would become 1), or unsigned beyond int64 (it would wrap to a
+    negative); None when it can."""
+    if a.size and not np.issubdtype(a.dtype, np.integer):
+        return f"{name} must hold integers, got dtype {a.dtype}"
+    if a.size and a.dtype.kind == "u" and a.max() > np.iinfo(np.int64).max:
+        return f"{name} holds {int(a.max())}, beyond int64"
+    return None
 
 
 def cell_tags(found: Findings, cell_tags: ArrayLike | None, m: int) -> NDArray | None:

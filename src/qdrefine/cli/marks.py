@@ -68,8 +68,9 @@ def marker(mesh: Mesh, args: argparse.Namespace) -> tuple[Marker, Mesh]:
 
 
 def without_marks(mesh: Mesh, args: argparse.Namespace) -> Mesh:
-    """``mesh`` without the field that carried ``--mark-file``'s marks (a user's field of
-    that name stays where ``--mark-file`` is not given: :func:`marker` refuses it with)."""
+    """``mesh`` without the field that carried ``--mark-file``'s marks. Without
+    ``--mark-file``, a user's field of that name stays (with it, :func:`marker` refuses
+    such an input)."""
     if args.mark_file is None or CARRIED not in mesh.cell_data:
         return mesh
     return mesh.replace(cell_data={k: v for k, v in mesh.cell_data.items() if k != CARRIED})
