@@ -7,7 +7,9 @@ process times, best of 5: one uniform 7T-QD level, the clustered step and the sc
 step; with ``--second``, best of 3, also the scattered second cycle (1% scattered marks
 again on the scattered step's output, which carries its transitions) and a uniform level
 of that mesh; with ``--coarsen``, best of 3, ``qdrefine.coarsen`` of the scattered step's
-output, everything marked and the half ``x < 0``. Usage (a second source tree, e.g. ``git
+output, everything marked and the half ``x < 0``, and of a fan (``FAN`` thin triangles
+around one vertex, all marked and refined, then everything coarsened: a vertex of degree
+``FAN``, where the cost per vertex shows). Usage (a second source tree, e.g. ``git
 worktree add /tmp/old REV``)::
 
     python benchmarks/adaptive_ab.py /tmp/old/src [--rounds 2] [--second] [--coarsen]
@@ -25,6 +27,21 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).parent
+
+#: Triangles of the fan that ``--coarsen`` also coarsens.
+FAN = 32_000
+
+
+def fan(n: int):
+    """``n`` triangles around the origin, their outer corners on the unit circle."""
+    import numpy as np
+
+    from qdrefine import Mesh
+
+    angle = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    points = np.vstack([[0, 0], np.c_[np.cos(angle), np.sin(angle)]])
+    ring = 1 + np.arange(n)
+    return Mesh(points, np.c_[np.zeros(n, dtype=np.int64), ring, 1 + ring % n])
 
 
 def measure(second: bool = False, coarsening: bool = False) -> dict:
@@ -66,6 +83,9 @@ def measure(second: bool = False, coarsening: bool = False) -> dict:
         for name, marked in (("everything", np.ones(fine.n_triangles, dtype=bool)),
                              ("half", mark_box(fine, (-1, -1, 0, 1)))):
             row[f"coarsen_{name}_s"] = best(lambda m=marked: qdrefine.coarsen(fine, m), 3)
+        around = qdrefine.refine(fan(FAN), marked=np.arange(FAN))
+        everything = np.ones(around.n_triangles, dtype=bool)
+        row["coarsen_fan_s"] = best(lambda: qdrefine.coarsen(around, everything), 3)
     return row
 
 

@@ -172,27 +172,33 @@ def test_a_lattice_partition_that_is_no_parent_is_not_restored(scheme, base, mon
 @settings(max_examples=20, deadline=None)
 @given(st.sampled_from(["l_shape", "plate_with_hole", "boundary_layer"]),
        st.integers(0, 2**32 - 1))
-def test_vertex_neighbours_list_each_vertexs_neighbours_once_in_scan_order(name, seed):
+def test_vertex_neighbours_list_each_vertexs_neighbours_once_in_coordinate_order(name, seed):
     """The corner search reads each vertex's neighbours from one packed run: the other
-    vertices of its triangles, in the order of the incidence lists and of the rows, each
-    once (so the search meets candidates in the order it met them through the triangles),
-    with their coordinates; on any subset of triangles in any order and rotation."""
+    vertices of its triangles, each once, in the order of their coordinates (then ids),
+    so that a place is found by bisection, with their coordinates; on any subset of
+    triangles in any order and rotation, and around vertices of every degree (a fan
+    joined in tests the runs longer than the insertion limit)."""
     from qdrefine.numbering import incidence
 
     mesh = examples.gmsh_mesh(name)
     rng = np.random.default_rng(seed)
     n = mesh.n_triangles
     rows = mesh.triangles.astype(np.int64)[rng.permutation(n)[:rng.integers(1, n + 1)]]
+    # a fan of 40 triangles around a new centre: its runs are long
+    centre, ring = mesh.n_points, rng.choice(mesh.n_points, 41, replace=False)
+    fan = np.c_[np.full(40, centre), ring[:-1], ring[1:]]
+    points = np.vstack([mesh.points, mesh.points[ring[0]]])  # the centre repeats a point
+    rows = np.vstack([rows, fan])[rng.permutation(rows.shape[0] + 40)]
     shift = rng.integers(0, 3, rows.shape[0])[:, None]
     rows = np.take_along_axis(rows, (shift + np.arange(3)) % 3, axis=1)
-    start, tris = incidence(rows, mesh.n_points)
-    first, ids, xy = red_module.vertex_neighbours(mesh.points, rows, start, tris)
-    for v in range(mesh.n_points):
-        expected = []
-        for t in tris[start[v]:start[v + 1]]:
-            expected += [u for u in rows[t] if u != v and u not in expected]
+    start, tris = incidence(rows, points.shape[0])
+    first, ids, xy = red_module.vertex_neighbours(points, rows, start, tris)
+    assert (np.diff(first) > red_module._FEW).any()
+    for v in range(points.shape[0]):
+        others = {int(u) for t in tris[start[v]:start[v + 1]] for u in rows[t] if u != v}
+        expected = sorted(others, key=lambda u: (points[u, 0], points[u, 1], u))
         assert ids[first[v]:first[v + 1]].tolist() == expected
-    np.testing.assert_array_equal(xy, mesh.points[ids])
+    np.testing.assert_array_equal(xy, points[ids])
 
 
 def test_without_history_nothing_changes():

@@ -143,11 +143,12 @@ def _contains(tri: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.bo
 def vertex_neighbours(points: NDArray[np.float64], rows: NDArray[np.int64],
                       start: NDArray[np.int64], tris: NDArray[np.int64]
                       ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
-    """The vertices sharing a triangle of ``rows (W, 3)`` with each vertex, in the order
-    of its triangles ``tris[start[v]:start[v + 1]]`` (:func:`~qdrefine.numbering.
-    incidence`) and of their rows, each once, with their coordinates beside them, so that
-    the searches around a vertex read one contiguous run instead of a triangle row and a
-    point for every corner (parallel over vertices, the same on any number of threads).
+    """The vertices sharing a triangle of ``rows (W, 3)`` with each vertex, each once, in
+    the order of their coordinates ``(x, y)`` (then of their ids), with the coordinates
+    beside them: the searches around a vertex read one contiguous run and find a point
+    near a given place by bisection, so a vertex of degree ``d`` costs ``O(log d)`` per
+    search instead of ``O(d)`` (parallel over vertices, the same on any number of
+    threads; :func:`~qdrefine.numbering.incidence` gives ``start, tris``).
 
     Returns
     -------
@@ -170,39 +171,76 @@ def vertex_neighbours(points: NDArray[np.float64], rows: NDArray[np.int64],
     return first, ids, xy
 
 
+#: Up to this many entries are put in order by insertion, beyond it by a merge sort.
+_FEW = 24
+
+
 @njit(parallel=True, cache=True)
 def _distinct_neighbours(rows, start, tris, room, count):
-    """``room[2 start[v]:]``: the distinct other vertices of ``v``'s triangles, in order;
-    ``count[v]``: how many."""
+    """``room[2 start[v]:]``: the distinct other vertices of ``v``'s triangles, by id;
+    ``count[v]``: how many (a sort and one pass: ``O(d log d)`` for degree ``d``)."""
     for v in prange(start.shape[0] - 1):
         base = 2 * start[v]
         c = 0
         for i in range(start[v], start[v + 1]):
             for m in range(3):
                 u = rows[tris[i], m]
-                if u == v:
-                    continue
-                seen = False
-                for h in range(base, base + c):
-                    if room[h] == u:
-                        seen = True
-                        break
-                if not seen:
+                if u != v:
                     room[base + c] = u
                     c += 1
-        count[v] = c
+        run = room[base:base + c]
+        if c <= _FEW:
+            for h in range(1, c):  # insertion
+                u, g = run[h], h
+                while g > 0 and run[g - 1] > u:
+                    run[g] = run[g - 1]
+                    g -= 1
+                run[g] = u
+        else:  # numba's quicksort is slow on these runs of pairs; merge sort is not
+            run[:] = run[np.argsort(run, kind="mergesort")]
+        kept = 0
+        for h in range(c):
+            if h == 0 or run[h] != run[h - 1]:
+                run[kept] = run[h]
+                kept += 1
+        count[v] = kept
 
 
 @njit(parallel=True, cache=True)
 def _packed_neighbours(points, start, room, first, ids, xy):
-    """Each vertex's run of ``room`` to ``ids[first[v]:]``, with the coordinates."""
+    """Each vertex's run of ``room`` (by id) to ``ids[first[v]:]`` in the order of
+    ``(x, y, id)``, with the coordinates."""
     for v in prange(first.shape[0] - 1):
-        base = 2 * start[v]
-        for h in range(first[v + 1] - first[v]):
-            u = room[base + h]
-            ids[first[v] + h] = u
-            xy[first[v] + h, 0] = points[u, 0]
-            xy[first[v] + h, 1] = points[u, 1]
+        base, out, c = 2 * start[v], first[v], first[v + 1] - first[v]
+        if c <= _FEW:
+            for h in range(c):  # insertion: stable, so equal points stay by id
+                u = room[base + h]
+                x, y = points[u, 0], points[u, 1]
+                g = out + h
+                while g > out and (xy[g - 1, 0] > x or (xy[g - 1, 0] == x and xy[g - 1, 1] > y)):
+                    ids[g], xy[g, 0], xy[g, 1] = ids[g - 1], xy[g - 1, 0], xy[g - 1, 1]
+                    g -= 1
+                ids[g], xy[g, 0], xy[g, 1] = u, x, y
+            continue
+        run = room[base:base + c]
+        by_y = np.argsort(points[run, 1], kind="mergesort")  # stable: (x, y), then id
+        order = by_y[np.argsort(points[run[by_y], 0], kind="mergesort")]
+        for h in range(c):
+            u = run[order[h]]
+            ids[out + h], xy[out + h, 0], xy[out + h, 1] = u, points[u, 0], points[u, 1]
+
+
+@njit(cache=True)
+def _first_at_or_after(xy, lo, hi, x, y):
+    """The first place ``h`` in ``[lo, hi)`` whose ``xy[h]`` is not before ``(x, y)`` in
+    ``(x, y)`` order (``hi`` if none): a bisection of a :func:`vertex_neighbours` run."""
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if xy[mid, 0] < x or (xy[mid, 0] == x and xy[mid, 1] < y):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 @njit(cache=True)
@@ -211,36 +249,37 @@ def _same_point(points, v, x, y):
 
 
 @njit(cache=True)
-def _near(x, y, px, py, tol):
-    return abs(x - px) <= tol and abs(y - py) <= tol
-
-
-@njit(cache=True)
 def _far_corner(points, first, ids, xy, a, p, k):
     """The point ``b`` and ``b``'s-side point ``p2`` such that ``p`` (and ``p2``) are the
     points of edge ``(a, b)`` by the refinement's formula, searched two working edges
-    from ``p`` (only among the points near where they would be, then exactly);
-    ``(-1, -1)`` if there is none. ``first, ids, xy``: :func:`vertex_neighbours`."""
+    from ``p`` (only among the points near where they would be, found by bisection, then
+    exactly); ``(-1, -1)`` if there is none. ``first, ids, xy``: :func:`vertex_neighbours`."""
     dx, dy = points[p, 0] - points[a, 0], points[p, 1] - points[a, 1]
     # far below the edge, far above rounding: the exact test decides
     tol = 1e-6 * (abs(dx) + abs(dy)) + 1e-13 * (abs(points[p, 0]) + abs(points[p, 1]))
     bx, by = points[a, 0] + (k + 1) * dx, points[a, 1] + (k + 1) * dy  # b, about
     if k == 1:
-        for h in range(first[p], first[p + 1]):
+        h = _first_at_or_after(xy, first[p], first[p + 1], bx - tol, -np.inf)
+        while h < first[p + 1] and xy[h, 0] <= bx + tol:
             y = ids[h]
-            if y != a and _near(xy[h, 0], xy[h, 1], bx, by, tol) and \
+            if y != a and abs(xy[h, 1] - by) <= tol and \
                     _same_point(points, p, edge_point(points[a, 0], points[y, 0], 0, 1),
                                 edge_point(points[a, 1], points[y, 1], 0, 1)):
                 return y, -1
+            h += 1
         return -1, -1
     cx, cy = points[a, 0] + 2 * dx, points[a, 1] + 2 * dy  # p2, about
-    for h in range(first[p], first[p + 1]):
+    h = _first_at_or_after(xy, first[p], first[p + 1], cx - tol, -np.inf)
+    while h < first[p + 1] and xy[h, 0] <= cx + tol:
         x = ids[h]
-        if x == a or not _near(xy[h, 0], xy[h, 1], cx, cy, tol):
+        h += 1
+        if x == a or abs(xy[h - 1, 1] - cy) > tol:
             continue
-        for h2 in range(first[x], first[x + 1]):
+        h2 = _first_at_or_after(xy, first[x], first[x + 1], bx - tol, -np.inf)
+        while h2 < first[x + 1] and xy[h2, 0] <= bx + tol:
             y = ids[h2]
-            if y == a or y == p or not _near(xy[h2, 0], xy[h2, 1], bx, by, tol):
+            h2 += 1
+            if y == a or y == p or abs(xy[h2 - 1, 1] - by) > tol:
                 continue
             if _same_point(points, p, edge_point(points[a, 0], points[y, 0], 0, 2),
                            edge_point(points[a, 1], points[y, 1], 0, 2)) and \
@@ -253,12 +292,12 @@ def _far_corner(points, first, ids, xy, a, p, k):
 @njit(cache=True)
 def _near_point(points, first, ids, xy, b, c, j, k):
     """The working-mesh neighbour of ``b`` at point ``j`` of edge ``(b, c)`` (from ``b``),
-    or -1."""
+    or -1 (by bisection of ``b``'s run)."""
     x0 = edge_point(points[b, 0], points[c, 0], j, k)
     x1 = edge_point(points[b, 1], points[c, 1], j, k)
-    for h in range(first[b], first[b + 1]):
-        if xy[h, 0] == x0 and xy[h, 1] == x1:
-            return ids[h]
+    h = _first_at_or_after(xy, first[b], first[b + 1], x0, x1)
+    if h < first[b + 1] and xy[h, 0] == x0 and xy[h, 1] == x1:
+        return ids[h]
     return -1
 
 
@@ -298,10 +337,16 @@ def _corner_guesses(points, rows, first, ids, xy, cand, k, out):
 @njit(cache=True)
 def _find_rows(rows, start, tris, kids, which):
     """``which[g, c]``: the working triangle with the vertices of ``kids[g, c]`` (in any
-    rotation), -1 if none."""
+    rotation), -1 if none; the lowest row if several (incidence lists are in row order, so
+    the list of the kid's corner of least degree is scanned)."""
     for g in range(kids.shape[0]):
         for c in range(kids.shape[1]):
             x, y, z = kids[g, c, 0], kids[g, c, 1], kids[g, c, 2]
+            # scan the incidence list of the corner of least degree
+            if start[y + 1] - start[y] < start[x + 1] - start[x]:
+                x, y = y, x
+            if start[z + 1] - start[z] < start[x + 1] - start[x]:
+                x, z = z, x
             for i in range(start[x], start[x + 1]):
                 t = tris[i]
                 hit = 0
