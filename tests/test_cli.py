@@ -309,7 +309,8 @@ def test_first_local_refinement_says_it_compiles_too(tmp_path, monkeypatch, caps
     qdrefine.write(mesh, examples.square(2))
     asked = []
     monkeypatch.setattr(cli_module, "compiled_before",
-                        lambda module: asked.append(module) or module == "kernels")
+                        lambda module: asked.append(module)
+                        or not module.startswith("adaptive."))
     for argv, local in ((["info", mesh], False), (["refine", mesh, out], False),
                         (["refine", mesh, out, "--mark-box", "0,0,0.5,0.5"], True),
                         (["coarsen", out, tmp_path / "c.msh", "--all"], True)):
@@ -320,6 +321,60 @@ def test_first_local_refinement_says_it_compiles_too(tmp_path, monkeypatch, caps
         for module in asked:  # each names a module with cached kernels
             source = importlib.import_module(f"qdrefine.{module}")
             assert "cache=True" in Path(source.__file__).read_text(), module
+
+
+#: Run in a fresh process: lists the modules whose numba kernels a command ran.
+_KERNELS_RUN = """
+import sys
+from numba.core.registry import CPUDispatcher
+from qdrefine.cli import main
+code = main(sys.argv[1:])
+ran = sorted({name.removeprefix("qdrefine.") for name, module in list(sys.modules.items())
+              if name.startswith("qdrefine.") for value in vars(module).values()
+              if isinstance(value, CPUDispatcher) and value.signatures
+              and value.__module__ == name})
+print(code, *ran)
+"""
+
+
+@pytest.mark.parametrize("argv", [
+    ["info", "{m}"], ["check", "{m}"], ["quality", "{m}"], ["compare", "{m}", "--levels", "1"],
+    ["convert", "{m}", "{d}/c.vtu"], ["plot", "{m}", "{d}/p.png"], ["diagram"],
+    ["refine", "{m}", "{d}/r.msh"], ["refine", "{m}", "{d}/r.msh", "--mark-box", "0,0,0.5,0.5"],
+    ["coarsen", "{h}", "{d}/c.msh", "--all"]], ids=lambda argv: "-".join(argv[:4]))
+def test_a_first_run_names_every_module_it_compiles(tmp_path, argv):
+    """The note of a first run looks for the cached kernels of the modules a command
+    names (``COMPILES`` / ``compiled(args)``): every module whose kernels the command
+    runs is among them, so a command never compiles for seconds without the note (on a
+    Gmsh mesh; local refinement names every adaptive module with cached kernels)."""
+    import sys
+
+    from qdrefine import cli as cli_module
+
+    mesh, history = tmp_path / "m.msh", tmp_path / "h.msh"
+    qdrefine.write(mesh, examples.gmsh_mesh("l_shape"))
+    qdrefine.write(history, qdrefine.refine(examples.gmsh_mesh("l_shape"), marked=[0, 5, 9]))
+    args = [a.format(m=mesh, h=history, d=tmp_path) for a in argv]
+    import subprocess
+    result = subprocess.run([sys.executable, "-c", _KERNELS_RUN, *args], capture_output=True,
+                            text=True, timeout=300, cwd=tmp_path)
+    code, *ran = result.stdout.split("\n")[-2].split()
+    assert code == "0", result.stderr
+    parsed = cli_module._parser().parse_args(args)
+    named = set(parsed.compiled(parsed))
+    assert set(ran) <= named, sorted(set(ran) - named)
+    for module in named:  # each names a module with cached kernels
+        source = importlib.import_module(f"qdrefine.{module}")
+        assert "cache=True" in Path(source.__file__).read_text(), module
+
+
+def test_local_refinement_names_every_adaptive_module_with_kernels():
+    from qdrefine.cli._common import LOCAL_KERNELS
+
+    folder = Path(qdrefine.__file__).parent / "adaptive"
+    cached = {f"adaptive.{path.stem}" for path in folder.glob("*.py")
+              if "cache=True" in path.read_text()}
+    assert cached and cached <= set(LOCAL_KERNELS), sorted(cached - set(LOCAL_KERNELS))
 
 
 def test_scheme_lists_take_spaces_and_count_each_scheme_once(tmp_path, capsys):

@@ -1,8 +1,9 @@
 """The ``qdrefine`` command line: one module per subcommand.
 
 Each subcommand module defines ``HELP`` (one line), ``add_args(parser)`` and
-``run(args) -> int``, and may define ``compiled(args)``: the modules whose numba kernels
-these options need (default ``("kernels",)``), so that a first run says it compiles them.
+``run(args) -> int``, and may name the modules whose cached numba kernels it runs, as
+``COMPILES`` or, where they depend on the options, ``compiled(args)`` (default: those of
+reading a mesh file, :data:`._common.READ`), so that a first run says it compiles them.
 
 Errors that users can cause (bad arguments, bad files, bad meshes, a mesh too large for
 the memory) are raised as ``ValueError``, ``OSError`` or
@@ -47,9 +48,10 @@ def _parser() -> argparse.ArgumentParser:
         cmd = sub.add_parser(name, help=module.HELP, description=module.HELP)
         cmd.set_defaults(parser=cmd)
         module.add_args(cmd)
+        compiles = getattr(module, "COMPILES", _common.READ)
         cmd.set_defaults(handler=module.run,
                          compiled=getattr(module, "compiled",
-                                          lambda args: _common.KERNELS))
+                                          lambda args, compiles=compiles: compiles))
     return parser
 
 

@@ -20,10 +20,15 @@ from ..store.locations import location
 if TYPE_CHECKING:
     from ..adaptive import HistoryMismatch
 
-#: The kernels a first run compiles (:func:`qdrefine.jit.compiled_before`): every command's,
-#: and local refinement's own (about a minute more), named by one module of each.
-KERNELS = ("kernels",)
-LOCAL_KERNELS = ("kernels", "adaptive.longest_edge")
+#: The modules whose cached kernels a command runs (:func:`qdrefine.jit.compiled_before`), so
+#: that a first run says it compiles them: reading and checking a mesh file (every command
+#: that reads one), uniform refinement, and local refinement's own (about a minute more).
+#: A command module names its own in ``COMPILES`` or ``compiled(args)``; ``READ`` if not.
+READ = ("check.points", "check.edges", "numbering", "predicates", "sweep")
+KERNELS = (*READ, "kernels", "io._text")
+LOCAL_KERNELS = (*KERNELS, *(f"adaptive.{name}" for name in (
+    "api", "coarsen", "edgekeys", "families", "history", "labels", "longest_edge", "output",
+    "patterns", "plan", "reach", "red_families", "window")))
 
 #: Extension of a chunked Zarr mesh store (:mod:`qdrefine.store`).
 STORE = ".zarr"

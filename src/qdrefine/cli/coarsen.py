@@ -40,7 +40,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 
 def compiled(args: argparse.Namespace) -> tuple[str, ...]:  # noqa: ARG001
     """The modules whose kernels coarsening compiles on a first run."""
-    return ("kernels", "adaptive.red_families")
+    return _common.LOCAL_KERNELS
 
 
 def run(args: argparse.Namespace) -> int:
