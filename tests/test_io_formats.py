@@ -440,17 +440,28 @@ def test_entities_in_several_physical_groups(tmp_path):
                                    reference.edge_tags.tolist(), strict=True)), path.name
 
 
-def test_msh40_that_meshio_cannot_read_says_why(tmp_path):
-    """MSH 4.0 goes through meshio, which prints its reason and exits on Gmsh 4.0 files with
-    parametric nodes: the message carries the reason (it said only 'unreadable')."""
+def test_msh40_written_by_gmsh_reads(tmp_path):
+    """Gmsh writes MSH 4.0 with the version "4", which meshio took for 4.1 (the file did
+    not read: "parametric nodes not implemented"); an entity in two physical groups is
+    named in a warning, since meshio's 4.0 reader keeps each element's first group."""
     with own_gmsh_model("old"):
         r = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
         gmsh.model.occ.synchronize()
-        gmsh.model.addPhysicalGroup(2, [r], 4, "domain")
+        gmsh.model.addPhysicalGroup(2, [r], 11, "plate")
+        gmsh.model.addPhysicalGroup(1, [1], 21, "bottom")
+        gmsh.model.addPhysicalGroup(1, [1, 2], 22, "bottom and right")
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.3)
         gmsh.model.mesh.generate(2)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 4.0)
         gmsh.option.setNumber("Mesh.Binary", 0)
-        gmsh.write(str(tmp_path / "old.msh"))
-    with pytest.raises(ValueError, match=r"old\.msh: not a readable Gmsh MSH file \(meshio: "
-                                         r"parametric nodes not implemented\)"):
-        qdrefine.read(tmp_path / "old.msh")
+        for version in (4.1, 4.0):
+            gmsh.option.setNumber("Mesh.MshFileVersion", version)
+            gmsh.write(str(tmp_path / f"m{version}.msh"))
+    old, new = tmp_path / "m4.0.msh", tmp_path / "m4.1.msh"
+    assert old.read_text().split("\n")[1].split()[0] == "4"
+    with pytest.warns(UserWarning, match="several physical groups.*groups 21"):
+        old = qdrefine.read(old)
+    new = qdrefine.read(new)
+    np.testing.assert_array_equal(old.points, new.points)
+    np.testing.assert_array_equal(old.triangles, new.triangles)
+    np.testing.assert_array_equal(old.cell_tags, new.cell_tags)
+    assert old.physical_names == new.physical_names

@@ -232,10 +232,12 @@ def mark_dorfler(indicator: ArrayLike, theta: float) -> NDArray[np.bool_]:
     if not 0.0 < theta <= 1.0:
         raise ValueError(f"theta must be in (0, 1], got {theta}")
     order = np.argsort(-eta, kind="stable")
-    total = eta.sum()
     mask = np.zeros(eta.shape[0], dtype=bool)
-    if total == 0:
+    if not eta.size or eta.max() == 0:
         return mask
+    # scaled by a power of two so that the largest is below 1: the sums cannot overflow
+    # (values near 1e308 made the total inf), and every sum rounds as it did unscaled
+    eta = np.ldexp(eta, -int(np.frexp(eta.max())[1]))
     csum = np.cumsum(eta[order])
     # against the cumulative sum's own total: eta.sum() rounds otherwise, and theta = 1
     # took a zero too (review)

@@ -281,6 +281,13 @@ class Mesh:
         return f"Mesh({self.n_points} points, {self.n_triangles} triangles{tags}{edges})"
 
 
+def need_mesh(mesh: object, function: str) -> None:
+    """``TypeError`` saying that ``function`` needs a :class:`Mesh`, unless ``mesh`` is one
+    (instead of an ``AttributeError`` deep inside)."""
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"{function}() needs a Mesh, got {type(mesh).__name__}")
+
+
 def _validated(points: ArrayLike, triangles: ArrayLike, cell_tags: ArrayLike | None,
                edges: ArrayLike | None, edge_tags: ArrayLike | None
                ) -> tuple[dict[str, NDArray | None], EdgeBuckets | None]:

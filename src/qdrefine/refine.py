@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .adaptive import refine_marked
 from .arguments import as_count
-from .mesh import Mesh
+from .mesh import Mesh, need_mesh
 from .predicates import COORDINATE_RANGE, below_range
 from .schemes import Scheme, get_scheme
 from .uniform import RefusedTriangle, refine_uniform
@@ -74,6 +74,7 @@ def refine(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     >>> fine.n_triangles == examples.plate_with_hole().n_triangles * 49
     True
     """
+    need_mesh(mesh, "refine")
     if device != "cpu":
         if device != "cuda":
             raise ValueError(f"unknown device {device!r}; choose 'cpu' or 'cuda'")
@@ -93,6 +94,7 @@ def refine_with_parents(
     marked: ArrayLike | None = None, *, strict: bool = True,
 ) -> tuple[Mesh, NDArray[np.int64]]:
     """:func:`refine`, also returning ``parents (M',) int64``: the input triangle of each child."""
+    need_mesh(mesh, "refine_with_parents")
     if marked is not None:
         out, parents = refine_marked(mesh, marked, scheme, levels)
         return _in_range(mesh, out, as_count(levels, "levels")), parents

@@ -22,7 +22,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from ..memory import check_needed, local_memory_needed
-from ..mesh import Mesh, index_dtype
+from ..mesh import Mesh, index_dtype, need_mesh
 from ..schemes import Scheme, get_scheme
 from .api import as_mask
 from .edgekeys import edge_keys, lookup, oriented
@@ -85,6 +85,7 @@ def coarsen_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd"
     output triangle (a restored triangle maps to its child with the lowest row, a
     transition to its family's first member; their cell data: see
     :mod:`~qdrefine.adaptive.representatives`)."""
+    need_mesh(mesh, "coarsen")
     sch = get_scheme(scheme)
     mask = as_mask(marked, mesh.n_triangles)
     check_needed(local_memory_needed(n_working=mesh.n_triangles, n_output=mesh.n_triangles),

@@ -13,7 +13,7 @@ What each format keeps
   ``binary=True``. The physical tag of each triangle is ``cell_tags``; line elements with a
   physical tag are tagged ``edges``; ``$PhysicalNames`` are ``physical_names``; point data
   and cell data are ``$NodeData`` / ``$ElementData`` views. 2.0-2.2 and 4.1 are read (4.0
-  through meshio).
+  through meshio's 4.0 reader, which keeps one physical group per element).
 - VTK XML ``.vtu``: binary (appended raw data) by default; line and triangle cells with the
   integer cell array ``tag``, point and cell data, physical names.
 - XDMF ``.xdmf`` / ``.xmf``: XML plus an HDF5 file ``name.h5`` (both written as a set); tags,
@@ -55,7 +55,7 @@ import numpy as np
 
 from ..check import MIN_ANGLE, Checked, find
 from ..memory import check_needed, reading_needed_for_bytes
-from ..mesh import Mesh, _data, _names, history_rows
+from ..mesh import Mesh, _data, _names, history_rows, need_mesh
 from . import gmsh, obj, triangle, vtu, xdmf
 from ._core import (
     WRITE_ERRNOS,
@@ -291,8 +291,7 @@ def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
     What the format cannot hold (tags; point and cell data; physical names) is dropped with
     a warning, as is any edge tag equal to 0 (0 reads as untagged).
     """
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"write() needs a Mesh, got {type(mesh).__name__}")
+    need_mesh(mesh, "write")
     path = Path(path)
     fmt = _format_of(path)
     if binary and fmt.binary is None:

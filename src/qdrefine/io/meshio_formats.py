@@ -12,8 +12,9 @@ import contextlib
 import io as io_module
 import os
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -133,15 +134,17 @@ def _check_frame(path: Path, meshio_name: str) -> int | None:
     return faces
 
 
-def read_with_meshio(path: Path, meshio_name: str, name: str) -> RawMesh:
-    """The content of ``path`` read by meshio as ``meshio_name``."""
+def read_with_meshio(path: Path, meshio_name: str, name: str,
+                     reader: Callable[[], Any] | None = None) -> RawMesh:
+    """The content of ``path`` read by meshio as ``meshio_name`` (by ``reader()``, which
+    returns a ``meshio.Mesh``, when given)."""
     check_regular(path)
     faces = _check_frame(path, meshio_name)
     import meshio
 
     try:
         with quiet_meshio(path):
-            m = meshio.read(path, file_format=meshio_name)
+            m = meshio.read(path, file_format=meshio_name) if reader is None else reader()
     except OSError as exc:
         raise OSError(f"{path}: {exc.strerror or exc}") from None
     except (Exception, SystemExit) as exc:  # meshio raises many kinds (even exits)

@@ -33,6 +33,8 @@ from ._core import (
     split_data,
     writable_data,
 )
+from .recorded import record, restored
+from .xml_names import check_xml_names
 
 __all__ = ["read", "write"]
 
@@ -154,12 +156,23 @@ def _read(path: Path, data: bytes) -> RawMesh:
             triangle_cells = rows
     raw = from_blocks(path, points, blocks, tags)
     meta = _meta(root, array)
-    raw.physical_names = {(int(d), int(t)): str(nm) for d, t, nm in meta.get("names", [])}
-    shapes = meta.get("shapes", {})
+    try:
+        raw.physical_names = {(int(d), int(t)): str(nm) for d, t, nm in meta.get("names", [])}
+    except (TypeError, ValueError):
+        raise ValueError(f"field data {_META!r}: its physical names are not (dim, tag, "
+                         "name) triples") from None
+    shapes = meta.get("shapes")
+
+    def kept(values: NDArray, where: str, name: str, rows: int) -> NDArray:
+        spec = shapes.get(where, {}) if isinstance(shapes, dict) else None
+        spec = spec.get(name) if isinstance(spec, dict) else None
+        out = restored(values, spec, rows, f"{path}: {where} data {name!r}")
+        return np.array(values) if out is None else out
+
     point_data = {}
     for item in piece.findall("./PointData/DataArray"):
         name = item.get("Name", "")
-        point_data[name] = _restore(array(item), shapes.get("point", {}).get(name), n)
+        point_data[name] = kept(array(item), "point", name, n)
     cell_data = {}
     for name, item in field_items.items():
         if name == key and name in TAG_NAMES:
@@ -167,8 +180,7 @@ def _read(path: Path, data: bytes) -> RawMesh:
         values = array(item)
         if len(values) != n_cells:
             raise ValueError(f"CellData {name!r}: expected {n_cells} rows")
-        cell_data[name] = _restore(values[triangle_cells], shapes.get("cell", {}).get(name),
-                                   len(triangle_cells))
+        cell_data[name] = kept(values[triangle_cells], "cell", name, len(triangle_cells))
     if len(raw.triangles):
         split_data(raw, point_data, cell_data)
     return raw
@@ -183,16 +195,6 @@ def _meta(root: ET.Element, array) -> dict:
                 raise ValueError(f"field data {_META!r} is not JSON") from None
             return meta if isinstance(meta, dict) else {}
     return {}
-
-
-def _restore(values: NDArray, spec, rows: int) -> NDArray:
-    if isinstance(spec, dict):
-        try:
-            return values.astype(np.dtype(spec["dtype"])).reshape(
-                (rows, *(int(s) for s in spec["shape"])))
-        except (KeyError, TypeError, ValueError):
-            pass
-    return np.array(values)
 
 
 def _block(data: bytes, offset: int, header: np.dtype, compressed: bool) -> bytes:
@@ -233,6 +235,7 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False) -> N
         raise ValueError(f"{path}: VTU files are written with binary data only (text VTU "
                          "would not keep every bit of the points, nor the physical names); "
                          "leave binary at its default")
+    check_xml_names(path, mesh, physical=False)  # the physical names are JSON in the file
     m, n = mesh.n_triangles, mesh.n_points
     k = 0 if mesh.edges is None else len(mesh.edges)
     tris = np.asarray(mesh.triangles)
@@ -254,10 +257,10 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False) -> N
     for name, value in cell_data.items():
         a = np.asarray(value)
         cell_fields[name] = np.concatenate([a, np.zeros((k, *a.shape[1:]), a.dtype)])
-        shapes["cell"][name] = {"shape": list(a.shape[1:]), "dtype": a.dtype.str}
+        shapes["cell"][name] = record(a)
     for name, value in point_data.items():
         a = np.asarray(value)
-        shapes["point"][name] = {"shape": list(a.shape[1:]), "dtype": a.dtype.str}
+        shapes["point"][name] = record(a)
     meta = {"names": [[d, t, nm] for (d, t), nm in sorted((mesh.physical_names or {}).items())],
             "shapes": shapes}
     blocks: list = []

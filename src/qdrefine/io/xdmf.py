@@ -33,6 +33,7 @@ from ._core import (
     mesh_data,
 )
 from .meshio_formats import check_one_group_per_name
+from .xml_names import check_xml_names
 
 __all__ = ["heavy_data_files", "read", "write"]
 
@@ -59,15 +60,21 @@ _ITEM = re.compile(rb"<DataItem\b([^>]*)>([^<]*)</DataItem>")
 _ATTRIBUTE = re.compile(rb'(\w+)\s*=\s*"([^"]*)"')
 
 
-def _heavy_items(text: bytes) -> list[tuple[str, str, str]]:
-    """``(file, dataset, dimensions)`` of every ``Format="HDF"`` data item of XDMF ``text``."""
+def _heavy_items(text: bytes, kind: str = "HDF") -> list[tuple[str, str, str]]:
+    """``(file, dataset, dimensions)`` of every ``Format="HDF"`` data item of XDMF ``text``;
+    with ``kind="Binary"``, ``(file, "", dimensions)`` of the raw binary items."""
     items = []
     for attributes, body in _ITEM.findall(text):
         found = {k.decode().lower(): html.unescape(v.decode(errors="replace"))
                  for k, v in _ATTRIBUTE.findall(attributes)}
+        if found.get("format", "").upper() != kind.upper():
+            continue
         content = html.unescape(body.decode(errors="replace")).strip()  # a&amp;b.h5: a&b.h5
+        if kind.upper() == "BINARY":
+            items.append((content, "", found.get("dimensions", "")))
+            continue
         name, sep, dataset = content.rpartition(":/")
-        if found.get("format", "").upper() == "HDF" and sep:
+        if sep:
             items.append((name, "/" + dataset, found.get("dimensions", "")))
     return items
 
@@ -94,6 +101,8 @@ def _check_heavy_data(path: Path) -> None:
         text = path.read_bytes()
     except OSError:
         return  # the reader says what is wrong
+    for name, _, _ in _heavy_items(text, "Binary"):
+        _check_binary_file(path, name)
     items = _heavy_items(text)
     for name in dict.fromkeys(n for n, _, _ in items):
         h5_path = path.parent / name
@@ -114,6 +123,23 @@ def _check_heavy_data(path: Path) -> None:
                              f"\"{dimensions}\", but the HDF5 dataset holds "
                              f"{' x '.join(map(str, shape))} values (a replaced or "
                              "mismatched HDF5 file)")
+
+
+def _check_binary_file(path: Path, name: str) -> None:
+    """A ``Format="Binary"`` data item's file: a regular file (a FIFO would hang the
+    reader), and the one its name means next to the XDMF file: meshio looks for it from the
+    working directory, so a relative name that leads elsewhere from there is refused
+    rather than read from another file."""
+    meant, opened = path.parent / name, Path(name)
+    if not meant.exists():
+        raise FileNotFoundError(f"{meant}: no such file (a binary data item of {path.name})")
+    if not meant.is_file():
+        raise OSError(f"{meant}: not a regular file (a binary data item of {path.name}; a "
+                      "FIFO or device is not read)")
+    if not opened.is_file() or not opened.samefile(meant):
+        raise ValueError(f"{path}: the binary data item {name!r} is read from the working "
+                         f"directory, where it is not {meant}; read the file from its own "
+                         "folder, or give the item's file an absolute name")
 
 
 def _check_set(path: Path) -> None:
@@ -140,21 +166,11 @@ def _check_set(path: Path) -> None:
                          "interrupted or concurrent write; write the mesh again")
 
 
-#: Characters that XML 1.0 cannot hold, not even escaped.
-_NOT_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]")
-
-
 def _check_names(path: Path, mesh) -> None:
     """Refuse names that the XML file cannot hold (control characters), and a physical name
     given to two groups (meshio reads the names as ``field_data``: one group per name)."""
     check_one_group_per_name(mesh.physical_names, f"{path}: ")
-    names = [("physical name", name) for name in (mesh.physical_names or {}).values()]
-    names += [("point data name", name) for name in (mesh.point_data or {})]
-    names += [("cell data name", name) for name in (mesh.cell_data or {})]
-    for what, name in names:
-        if _NOT_XML.search(name):
-            raise ValueError(f"{path}: {what} {name!r} contains a control character, which "
-                             "XML files cannot hold")
+    check_xml_names(path, mesh)
 
 
 def _write_error(path: Path, exc: BaseException) -> OSError:
@@ -184,6 +200,10 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # no
 
     _check_names(path, mesh)
     h5_path = path.with_suffix(".h5")
+    if ":" in h5_path.name:
+        raise ValueError(f"{path}: an XDMF file name cannot hold ':' (readers split the heavy "
+                         f"data's 'FILE:/dataset' at it, so {h5_path.name} would not be "
+                         "found); choose another name")
     m, n = mesh.n_triangles, mesh.n_points
     k = 0 if mesh.edges is None else len(mesh.edges)
     xyz = np.zeros((n, 3))

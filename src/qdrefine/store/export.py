@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from ..io import FORMATS, GMSH_VERSIONS, read, triangle, write
 from ..io.gmsh import writing as gmsh_writing
-from ..mesh import Mesh
+from ..mesh import Mesh, need_mesh
 from .layout import (
     ARRAYS,
     DEFAULT_CHUNK_SIZE,
@@ -60,8 +60,7 @@ def create(path: PathLike, mesh: Mesh, chunk_size: int = DEFAULT_CHUNK_SIZE,
     >>> s.triangles.chunks[0]
     (100, 100, 100, 84)
     """
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"create() needs a Mesh, got {type(mesh).__name__}")
+    need_mesh(mesh, "create")
     chunk_size = chunk_size_of(chunk_size)
     url = location(path)
     arrays = {name: getattr(mesh, name) for name in ARRAYS}

@@ -10,7 +10,9 @@ line (text) or byte (binary).
 from __future__ import annotations
 
 import json
+import math
 import re
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -19,6 +21,7 @@ from numpy.typing import NDArray
 
 from .._core import RawMesh, check_readable, from_blocks, read_bytes, split_data
 from .._text import BadNumber, parse, parse_table
+from ..recorded import restored
 from .common import ELEMENTS, EXACT_INT, GmshError
 
 __all__ = ["read"]
@@ -123,6 +126,8 @@ def _read(f: _File) -> RawMesh:
         if not c.version and name != "MeshFormat":
             raise f.error(pos, "no $MeshFormat section at the start")
         handler = _HANDLERS.get(name)
+        if c.version == "4.0" and (name not in ("MeshFormat", "Entities") or f.binary):
+            handler = None  # meshio reads MSH 4.0; the entities only say what it loses
         if name == "ParametricNodes":  # MSH 2.2 with Mesh.SaveParametric: not $Nodes
             raise f.error(pos, "$ParametricNodes (a file saved with Mesh.SaveParametric) is "
                                "not read; save the mesh without it")
@@ -139,8 +144,8 @@ def _read(f: _File) -> RawMesh:
                 raise f.error(start, f"${name} holds a count or tag that is not an integer "
                                      f"({exc})") from None
         pos = _expect_end(f, name, end)
-        if c.version == "4.0":
-            return _meshio_fallback(f.path)
+    if c.version == "4.0":
+        return _meshio_fallback(f, c)
     if not c.version:
         raise f.error(0, "no $MeshFormat section (empty file?)")
     if c.points is None:
@@ -167,6 +172,23 @@ def _int(value: float) -> int:
     return int(value)
 
 
+def _count(value: float) -> int:
+    """A count read as a float: :func:`_int`, and not negative."""
+    n = _int(value)
+    if n < 0:
+        raise ValueError(f"expected a count, got {n}")
+    return n
+
+
+def _node_width(f: _File, pos: int, dim: int, parametric: int) -> int:
+    """The numbers per node of an MSH 4.1 node block: x, y, z and, for a parametric block,
+    ``dim`` parameters (``GmshError`` for a dimension or flag out of range)."""
+    if not 0 <= dim <= 3 or parametric not in (0, 1):
+        raise f.error(pos, f"$Nodes: a node block of dimension {dim}, parametric flag "
+                           f"{parametric} (expected 0 to 3, and 0 or 1)")
+    return 3 + (dim if parametric else 0)
+
+
 def _mesh_format(f: _File, c: _Content, start: int) -> int:
     text, pos = f.line(start)
     words = text.split()
@@ -186,8 +208,10 @@ def _mesh_format(f: _File, c: _Content, start: int) -> int:
 
 def _physical_names(f: _File, c: _Content, start: int) -> int:
     end = f.end_of("PhysicalNames", start)
-    lines = f.data[start:end].decode("utf-8", "replace").splitlines()
-    lines = [x for x in lines if x.strip()]
+    # lines end at "\n" only, as Gmsh reads them (str.splitlines also breaks at "\x0c",
+    # "\u2028" and others, which a name may hold)
+    lines = f.data[start:end].decode("utf-8", "replace").split("\n")
+    lines = [x.removesuffix("\r") for x in lines if x.strip()]
     if not lines or not lines[0].strip().isdigit():
         raise f.error(start, "expected the number of physical names")
     count = int(lines[0])
@@ -198,12 +222,16 @@ def _physical_names(f: _File, c: _Content, start: int) -> int:
         if m is None:
             raise f.error(start, f"physical name {i + 1}: expected 'dim tag \"name\"', got "
                                  f"{line.strip()[:60]!r}")
-        c.names[(int(m.group(1)), int(m.group(2)))] = m.group(3)
+        key = (int(m.group(1)), int(m.group(2)))
+        if key in c.names and c.names[key] != m.group(3):
+            raise f.error(start, f"physical group {key[1]} of dimension {key[0]} is named "
+                                 f"twice ({c.names[key]!r} and {m.group(3)!r})")
+        c.names[key] = m.group(3)
     return end
 
 
 def _entities(f: _File, c: _Content, start: int) -> int:
-    if c.version != "4.1":
+    if c.version == "2.2":
         return f.end_of("Entities", start)
     if f.binary:
         head, pos = f.take(start, np.uint64, 4, "$Entities")
@@ -223,17 +251,22 @@ def _entities(f: _File, c: _Content, start: int) -> int:
     i = 4
     try:
         for dim in range(4):
-            for _ in range(_int(v[dim])):
+            for _ in range(_count(v[dim])):
                 tag = _int(v[i])
-                i += 4 if dim == 0 else 7
-                n_phys = _int(v[i])
+                i += 4 if dim == 0 and c.version == "4.1" else 7  # 4.0: a box for points
+                n_phys = _count(v[i])
+                if i + 1 + n_phys > len(v):
+                    raise IndexError
                 phys = v[i + 1:i + 1 + n_phys]
                 i += 1 + n_phys
                 c.entities[(dim, tag)] = tuple(_int(p) for p in phys) or (0,)
                 if dim > 0:
-                    i += 1 + int(v[i])
+                    i += 1 + _count(v[i])
     except (IndexError, ValueError, OverflowError):
-        raise f.error(start, "$Entities ends early") from None
+        raise f.error(start, "$Entities ends early, or a count in it is not a count") from None
+    if i != len(v):
+        raise f.error(start, f"$Entities holds {len(v) - i} numbers more than its counts "
+                             "announce")
     return end
 
 
@@ -248,10 +281,10 @@ def _nodes(f: _File, c: _Content, start: int) -> int:
         tags, coords = [], []
         for _ in range(n_blocks):
             b, pos = f.take(pos, np.int32, 3, "$Nodes")
+            width = _node_width(f, pos - 12, int(b[0]), int(b[2]))
             count, pos = f.take(pos, np.uint64, 1, "$Nodes")
             n = int(count[0])
             t, pos = f.take(pos, np.uint64, n, "$Nodes")
-            width = 3 + (int(b[0]) if b[2] else 0)
             x, pos = f.take(pos, np.float64, n * width, "$Nodes")
             tags.append(t.astype(np.int64))
             coords.append(x.reshape(n, width)[:, :3])
@@ -273,7 +306,7 @@ def _nodes(f: _File, c: _Content, start: int) -> int:
                 raise f.error(end, "$Nodes ends early (fewer node blocks than announced)")
             dim, parametric, n = int(v[i]), int(v[i + 2]), int(v[i + 3])
             i += 4
-            width = 3 + (dim if parametric else 0)
+            width = _node_width(f, start, dim, parametric)
             if n < 0 or i + n * (1 + width) > len(v):
                 raise f.error(end, f"$Nodes ends early (a block announces {n} nodes)")
             tags.append(v[i:i + n])
@@ -351,6 +384,8 @@ def _nodes41_by_lines(f: _File, start: int, end: int
         tags, coords = [], []
         for _ in range(n_blocks):
             dim, _, parametric, n = (int(x) for x in lines(at, 1).split())
+            if not 0 <= dim <= 3 or parametric not in (0, 1) or n < 0:
+                return None  # the general parser names it
             width = 3 + (dim if parametric else 0)
             t = parse(lines(at + 1, n), np.int64) if n else np.empty(0, np.int64)
             x = parse_table(lines(at + 1 + n, n), width) if n else np.empty((0, width))
@@ -569,6 +604,10 @@ def _data_section(kind: str):
                               else "element")
             v = np.ascontiguousarray(numbers[:, 1:])
         target = c.node_data if kind == "NodeData" else c.element_data
+        twice = _first_duplicate(tags)
+        if twice is not None:
+            what = "node" if kind == "NodeData" else "element"
+            raise f.error(start, f"${kind} {name!r} gives {what} {twice} two values")
         if name in target:  # a view's later time step: one field per name
             warnings.warn(f"{f.path}: ${kind} {name!r} is given more than once (time steps "
                           "of a view); the last one is kept", stacklevel=2)
@@ -683,7 +722,7 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
     kept_lines = line_ids[np.asarray(line_tags) != 0]  # the lines that are tagged edges
     if raw.edges is not None and len(kept_lines) == len(raw.edges):
         raw.edge_numbers = np.asarray(kept_lines, dtype=np.int64)
-    point_data = {name: _field(c, "point", name, v, _rows_of(tags, t, contiguous), len(tags))
+    point_data = {name: _field(f, c, "point", name, v, _rows_of(tags, t, contiguous), len(tags))
                   for name, (t, v) in c.node_data.items()}
     cell_data = {}
     if len(tri_ids) and c.element_data:
@@ -691,7 +730,7 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
             raise GmshError(f"element tag {_first_duplicate(tri_ids)} is given to two "
                             "triangles")
         for name, (t, v) in c.element_data.items():
-            cell_data[name] = _field(c, "cell", name, v, _rows_of(tri_ids, t), len(tri_ids))
+            cell_data[name] = _field(f, c, "cell", name, v, _rows_of(tri_ids, t), len(tri_ids))
     split_data(raw, point_data, cell_data)
     return raw
 
@@ -744,29 +783,52 @@ def _once_per_triangle(f: _File, rows: NDArray, tags: NDArray, ids: NDArray
     return rows[keep], tags[keep], ids[keep]
 
 
-def _field(c: _Content, where: str, name: str, values: NDArray, rows: NDArray, size: int
-           ) -> NDArray:
+def _field(f: _File, c: _Content, where: str, name: str, values: NDArray, rows: NDArray,
+           size: int) -> NDArray:
     """One field: ``values (k, components)`` at ``rows`` (-1: not a point / triangle) spread
     over ``size`` rows (NaN where the file gives none), restored to the shape and dtype that
-    ``$QdrefineData`` records."""
+    ``$QdrefineData`` records where the record fits (:mod:`..recorded`; the writer pads a
+    field to 1, 3 or 9 components with zeros)."""
     out = np.full((size, values.shape[1]), np.nan)
     ok = rows >= 0
     out[rows[ok]] = values[ok]
     spec = c.dtypes.get(where, {}).get(name) if isinstance(c.dtypes.get(where), dict) else None
-    if isinstance(spec, dict):
-        try:
-            shape, dtype = tuple(int(s) for s in spec["shape"]), np.dtype(spec["dtype"])
-            width = int(np.prod(shape))
-            out = out[:, :width]
-            if dtype.kind == "f" or (dtype.kind in "iub" and np.isfinite(out).all()):
-                out = out.astype(dtype)
-            return out.reshape((size, *shape))
-        except (KeyError, TypeError, ValueError):
-            pass
+    stored = out
+    shape = spec.get("shape") if isinstance(spec, dict) else None
+    if isinstance(shape, list) and all(type(s) is int and s >= 0 for s in shape):
+        width = math.prod(shape)
+        rest = out[:, width:]
+        if width <= out.shape[1] and ((rest == 0) | np.isnan(rest)).all():
+            stored = out[:, :width]
+    kept = restored(stored, spec, size, f"{f.path}: {where} data {name!r}")
+    if kept is not None:
+        return kept
     return out[:, 0] if out.shape[1] == 1 else out
 
 
-def _meshio_fallback(path: Path) -> RawMesh:
+def _meshio_fallback(f: _File, c: _Content) -> RawMesh:
+    """MSH 4.0, read by meshio's MSH 4.0 reader (meshio takes the version "4", which Gmsh
+    writes for MSH 4.0, as 4.1: the header is given to it as "4.0"); a warning when an
+    entity is in several physical groups (meshio keeps the first)."""
     from ..meshio_formats import read_with_meshio
 
-    return read_with_meshio(path, "gmsh", "Gmsh MSH")
+    several = sorted(key for key, tags in c.entities.items() if len(tags) > 1)
+    if several:
+        dim, tag = several[0]
+        count = "an entity is" if len(several) == 1 else f"{len(several)} entities are"
+        warnings.warn(f"{f.path}: {count} in several physical groups "
+                      f"(the first: dimension {dim}, entity {tag}, groups "
+                      f"{_groups(c, dim, c.entities[several[0]])}); MSH 4.0 is read by meshio, "
+                      "which keeps each element's first group (MSH 4.1 and 2.2 keep them all)",
+                      stacklevel=2)
+
+    def msh40():  # a copy with the header "4.0" (meshio's reader needs a real file)
+        import meshio
+
+        data = re.sub(rb"^(\s*\$MeshFormat\s+)4(\s)", rb"\g<1>4.0\2", f.data, count=1)
+        with tempfile.TemporaryDirectory(prefix="qdrefine-msh40-") as folder:
+            copy = Path(folder) / "mesh.msh"
+            copy.write_bytes(data)
+            return meshio.read(copy, file_format="gmsh")
+
+    return read_with_meshio(f.path, "gmsh", "Gmsh MSH", msh40)

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from .._core import MeshChunks, atomic_path, mesh_data
 from .._text import format_floats, int_lines
+from ..recorded import record
 from .common import EXACT_INT, VERSIONS
 
 __all__ = ["write", "write_chunks", "Chunks", "GROUPED_PASSES"]
@@ -381,8 +382,7 @@ def _data_sections(path: Path, mesh, point_data: dict, cell_data: dict, binary: 
             comps = 1 if width == 1 else (3 if width <= 3 else 9 if width <= 9 else width)
             if comps != width:
                 flat = np.column_stack([flat, np.zeros((len(flat), comps - width))])
-            spec.setdefault(where, {})[name] = {"shape": list(a.shape[1:]),
-                                                "dtype": a.dtype.str}
+            spec.setdefault(where, {})[name] = record(a)
             head = f'${kind}\n1\n"{name}"\n1\n0\n3\n0\n{comps}\n{len(flat)}\n'.encode()
             ids = np.arange(first, first + len(flat))
             if binary:

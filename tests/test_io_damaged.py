@@ -1,0 +1,239 @@
+"""Damaged and unusual files: what the readers refuse (one line naming the file and the
+place), warn about, or read right; and what the writers refuse before writing anything.
+
+Each case was found by a review that edited real files (a count, a header, a record, a
+name); the files here are made the same way from a small tagged mesh.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import qdrefine
+from qdrefine import Mesh
+from qdrefine.marking import mark_dorfler
+
+P = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]], dtype=float)
+T = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+
+
+def _tagged() -> Mesh:
+    return Mesh(P, T, cell_tags=np.array([1, 1, 2, 2]), edges=np.array([[0, 1]]),
+                edge_tags=np.array([3]), physical_names={(2, 1): "a"})
+
+
+def _refused(path: Path, *fragments: str) -> str:
+    with pytest.raises(ValueError) as info:
+        qdrefine.read(path)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(str(path)), message
+    for fragment in fragments:
+        assert fragment in message, message
+    return message
+
+
+@pytest.mark.parametrize("edit, fragment", [
+    (("$Entities\n0 1 2 0\n", "$Entities\n0 1 1 0\n"), "more than its counts announce"),
+    (("0.0 1 3 0\n", "0.0 -1 3 0\n"), "not a count"),  # a negative number of groups
+    (("0.0 1 3 0\n", "0.0 1 3 -2\n"), "not a count"),  # negative bounding entities
+])
+def test_msh41_entities_counts_are_checked(tmp_path, edit, fragment):
+    """The counts of ``$Entities`` decide which physical groups the elements get: a count
+    that is short, or negative, gave the triangles tag 0 and lost the tagged edges while
+    ``check`` called the file usable."""
+    good = tmp_path / "good.msh"
+    qdrefine.write(good, _tagged())
+    text = good.read_text()
+    assert edit[0] in text
+    bad = tmp_path / "bad.msh"
+    bad.write_text(text.replace(edit[0], edit[1], 1))
+    _refused(bad, "$Entities", fragment)
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_a_node_block_of_impossible_dimension_is_named(tmp_path, binary):
+    """A parametric node block of dimension -3 has 0 numbers per node: a division by zero
+    (text) or a message without a place (binary)."""
+    path = tmp_path / "m.msh"
+    qdrefine.write(path, _tagged(), binary=binary)
+    data = path.read_bytes()
+    start = data.index(b"$Nodes\n") + len(b"$Nodes\n")
+    if binary:
+        at = start + 4 * 8  # the four counts of the section
+        block = struct.pack("<3i", -3, 1, 1)  # dimension, entity, parametric
+        data = data[:at] + block + data[at + 12:]
+    else:
+        lines = data[start:].split(b"\n")
+        lines[1] = b"-3 1 1 " + lines[1].split()[-1]
+        data = data[:start] + b"\n".join(lines)
+    path.write_bytes(data)
+    _refused(path, "$Nodes", "dimension -3")
+
+
+@pytest.mark.parametrize("ext", [".msh", ".vtu"])
+@pytest.mark.parametrize("record, reason", [
+    ({"shape": [], "dtype": "<,4"}, "is not a dtype"),
+    ({"shape": [-1], "dtype": "<f8"}, "is not a list of sizes"),
+    ({"shape": [], "dtype": "<i8"}, "are not int64 values"),
+    ({"shape": [2], "dtype": "<f8"}, "does not fit"),
+    ({"shape": [], "dtype": "|O"}, "is not numeric"),
+])
+def test_a_record_that_does_not_fit_the_values_is_ignored_with_a_warning(tmp_path, ext, record,
+                                                                         reason):
+    """The shape and dtype recorded beside a field (``$QdrefineData``, VTU's ``qdrefine``
+    field data) are used only where they change no value: a damaged record raised a
+    ``SyntaxError`` traceback, made the values vanish (shape ``[-1]``) or truncated
+    ``0.5`` to ``0`` (an integer dtype)."""
+    values = np.array([0.5, 1.5, 2.5, 3.5, 4.5])
+    path = tmp_path / f"m{ext}"
+    qdrefine.write(path, Mesh(P, T, point_data={"u": values}))
+    data = path.read_bytes()
+    old = json.dumps({"shape": [], "dtype": "<f8"}).encode()
+    assert data.count(old) == 1
+    # as long as the stored record (VTU's appended bytes keep their offsets)
+    new = json.dumps(record, separators=(",", ":")).encode().ljust(len(old))
+    assert len(new) == len(old)
+    data = data.replace(old, new)
+    path.write_bytes(data)
+    with pytest.warns(UserWarning, match=reason) as caught:
+        mesh = qdrefine.read(path)
+    assert str(path) in str(caught[0].message) and "'u'" in str(caught[0].message)
+    np.testing.assert_array_equal(mesh.point_data["u"], values)  # as stored
+
+
+def test_records_that_fit_still_restore_shapes_and_dtypes(tmp_path):
+    data = {"i": np.arange(5, dtype=np.int32), "b": np.array([1, 0, 1, 1, 0], bool),
+            "h": np.linspace(0, 1, 5).astype(np.float16), "v": np.arange(10.).reshape(5, 2),
+            "m": np.arange(20, dtype=np.int16).reshape(5, 2, 2)}
+    for ext in (".msh", ".vtu"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            qdrefine.write(tmp_path / f"m{ext}", Mesh(P, T, point_data=data))
+            back = qdrefine.read(tmp_path / f"m{ext}")
+        for name, value in data.items():
+            assert back.point_data[name].dtype == value.dtype, (ext, name)
+            np.testing.assert_array_equal(back.point_data[name], value)
+
+
+NAMES = {(2, 1): "steel\u2028grade A", (2, 2): "a\x0bb\x0c\x1c\x1d\x1e\x85\u2029 z"}
+
+
+@pytest.mark.parametrize("version", qdrefine.io.GMSH_VERSIONS)
+@pytest.mark.parametrize("binary", [False, True])
+def test_physical_names_with_unicode_line_breaks_read_back(tmp_path, version, binary):
+    """Gmsh ends a line at ``\\n`` only; ``str.splitlines`` also broke a name at
+    ``\\u2028``, ``\\x0c`` and the like (written fine, then refused on reading)."""
+    path = tmp_path / "m.msh"
+    qdrefine.write(path, Mesh(P, T, cell_tags=np.array([1, 1, 2, 2]), physical_names=NAMES),
+                   format_version=version, binary=binary)
+    assert qdrefine.read(path).physical_names == NAMES
+
+
+@pytest.mark.parametrize("name", ["temp\x0cK", "a\x00b", "x\ud800"])
+def test_vtu_refuses_data_names_xml_cannot_hold(tmp_path, name):
+    """XML 1.0 cannot hold these characters, not even escaped: the file was written and
+    then could not be read."""
+    path = tmp_path / "m.vtu"
+    with pytest.raises(ValueError, match="control character"):
+        qdrefine.write(path, Mesh(P, T, point_data={name: np.arange(5.)}))
+    assert not path.exists()
+    # physical names go into JSON, which holds anything
+    mesh = Mesh(P, T, cell_tags=np.array([1, 1, 2, 2]), physical_names=NAMES)
+    qdrefine.write(path, mesh)
+    assert qdrefine.read(path).physical_names == NAMES
+
+
+def test_xdmf_refuses_a_name_with_a_colon(tmp_path):
+    """``run:1.xdmf`` referred to ``run:1.h5:/data0``, which readers split at the first
+    colon: written, never read back."""
+    path = tmp_path / "run:1.xdmf"
+    with pytest.raises(ValueError, match="cannot hold ':'"):
+        qdrefine.write(path, _tagged())
+    assert not list(tmp_path.iterdir())
+
+
+def _binary_xdmf(folder: Path, item: str) -> Path:
+    path = folder / "bin.xdmf"
+    path.write_text(
+        '<?xml version="1.0"?>\n<Xdmf Version="3.0"><Domain><Grid Name="mesh" '
+        'GridType="Uniform">\n<Geometry GeometryType="XY"><DataItem DataType="Float" '
+        f'Precision="8" Dimensions="3 2" Format="Binary">{item}</DataItem></Geometry>\n'
+        '<Topology TopologyType="Triangle" NumberOfElements="1"><DataItem DataType="Int" '
+        'Precision="8" Dimensions="1 3" Format="XML">0 1 2</DataItem></Topology>\n'
+        '</Grid></Domain></Xdmf>\n')
+    return path
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="FIFOs are POSIX")
+def test_xdmf_binary_items_never_wait_on_a_fifo(tmp_path):
+    os.mkfifo(tmp_path / "fifo.bin")
+    with pytest.raises(OSError, match="not a regular file"):
+        qdrefine.read(_binary_xdmf(tmp_path, "fifo.bin"))
+
+
+def test_xdmf_binary_items_are_read_next_to_the_xdmf_file(tmp_path, monkeypatch):
+    """meshio opens a binary item's file from the working directory: from another one, a
+    file of the same name there was read instead, silently."""
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    (sub / "pts.bin").write_bytes(np.array([0, 0, 5, 0, 0, 5], "<f8").tobytes())
+    (tmp_path / "pts.bin").write_bytes(np.array([0, 0, 1, 0, 0, 1], "<f8").tobytes())
+    path = _binary_xdmf(sub, "pts.bin")
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match="working directory"):
+        qdrefine.read(Path("sub") / "bin.xdmf")
+    monkeypatch.chdir(sub)
+    assert qdrefine.read(path).points.max() == 5
+    monkeypatch.chdir(tmp_path)
+    assert qdrefine.read(_binary_xdmf(sub, sub / "pts.bin")).points.max() == 5  # absolute
+
+
+def test_dorfler_marking_of_indicators_near_the_float_limit():
+    """The cumulative sum of values near 1e308 overflowed: too many or too few marks."""
+    assert mark_dorfler([1e308] * 4, 0.1).sum() == 1
+    assert mark_dorfler([1.5e308, 1.5e308, 1e300], 1.0).sum() == 3
+    eta = np.random.default_rng(0).random(1000)
+    np.testing.assert_array_equal(mark_dorfler(eta * 2.0**1000, 0.5), mark_dorfler(eta, 0.5))
+
+
+@pytest.mark.parametrize("call", [lambda: qdrefine.refine("m", marked=[0]),
+                                  lambda: qdrefine.refine("m"),
+                                  lambda: qdrefine.coarsen("m", [0])])
+def test_mesh_functions_say_they_need_a_mesh(call):
+    with pytest.raises(TypeError, match=r"\(\) needs a Mesh, got str"):
+        call()
+
+
+def test_a_physical_group_named_twice_is_refused(tmp_path):
+    """The second name silently replaced the first."""
+    path = tmp_path / "m.msh"
+    qdrefine.write(path, _tagged())
+    text = path.read_text()
+    assert '$PhysicalNames\n1\n2 1 "a"\n' in text
+    path.write_text(text.replace('$PhysicalNames\n1\n2 1 "a"\n',
+                                 '$PhysicalNames\n2\n2 1 "a"\n2 1 "b"\n'))
+    _refused(path, "named twice", "'a' and 'b'")
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_a_node_given_two_values_in_a_view_is_refused(tmp_path, binary):
+    """The last value silently won."""
+    path = tmp_path / "m.msh"
+    qdrefine.write(path, Mesh(P, T, point_data={"u": np.arange(5.)}), binary=binary)
+    data = path.read_bytes()
+    if binary:
+        at = data.index(struct.pack("<id", 1, 0.0), data.index(b"$NodeData"))
+        data = data[:at] + struct.pack("<i", 2) + data[at + 4:]
+    else:
+        assert data.count(b"\n1 0\n") == 1
+        data = data.replace(b"\n1 0\n", b"\n2 0\n")
+    path.write_bytes(data)
+    _refused(path, "$NodeData 'u' gives node 2 two values")
