@@ -237,3 +237,15 @@ def test_a_node_given_two_values_in_a_view_is_refused(tmp_path, binary):
         data = data.replace(b"\n1 0\n", b"\n2 0\n")
     path.write_bytes(data)
     _refused(path, "$NodeData 'u' gives node 2 two values")
+
+
+def test_a_vtu_triangle_cell_of_four_points_is_named(tmp_path):
+    """A cell of VTK type 5 (triangle) with another number of points was dropped, and the
+    file refused as one without triangles."""
+    path = tmp_path / "m.vtu"
+    qdrefine.write(path, Mesh(P, T))
+    data = path.read_bytes()
+    offsets = np.array([3, 6, 9, 12], "<i8").tobytes()
+    assert data.count(offsets) == 1
+    path.write_bytes(data.replace(offsets, np.array([3, 6, 10, 12], "<i8").tobytes()))
+    _refused(path, "cell 2 is a triangle (VTK type 5) of 4 points, not 3")

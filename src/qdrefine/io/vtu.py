@@ -147,7 +147,11 @@ def _read(path: Path, data: bytes) -> RawMesh:
     for t in np.unique(types).tolist():
         rows = np.flatnonzero(types == t)
         name, npe = _CELLS.get(t, (f"VTK type {t}", 0))
-        if npe == 0 or (sizes[rows] != npe).any():
+        if npe and (sizes[rows] != npe).any():
+            bad = int(rows[np.argmax(sizes[rows] != npe)])
+            raise ValueError(f"Cells: cell {bad} is a {name} (VTK type {t}) of "
+                             f"{int(sizes[bad])} points, not {npe}")
+        if npe == 0:
             blocks.append((name, np.empty((len(rows), 0), np.int64)))
         else:
             blocks.append((name, conn[starts[rows][:, None] + np.arange(npe)]))
