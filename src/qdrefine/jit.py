@@ -1,6 +1,6 @@
 """Low-level support shared by the compiled kernels: where their compiled code is cached,
-work sizes, the thread switch for small inputs, and software prefetch (an LLVM intrinsic
-numba does not expose)."""
+work sizes, the thread switch for small inputs, software prefetch (an LLVM intrinsic
+numba does not expose), and the bisection of rows sorted by two keys."""
 
 from __future__ import annotations
 
@@ -157,3 +157,16 @@ def unsigned(i):
     """``i`` (known ``>= 0``) as ``uint64``, for hot array indices: numba checks every signed
     index for wraparound (a compare and a select per access), an unsigned one never."""
     return np.uint64(i)
+
+
+@njit(cache=True)
+def first_row_at_or_after(rows, lo, hi, x, y):
+    """The first row ``h`` in ``[lo, hi)`` of ``rows (R, >= 2)``, sorted by their first two
+    columns, with ``(rows[h, 0], rows[h, 1])`` not before ``(x, y)`` (``hi`` if none)."""
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if rows[mid, 0] < x or (rows[mid, 0] == x and rows[mid, 1] < y):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo

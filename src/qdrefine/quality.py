@@ -22,6 +22,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from .jit import first_row_at_or_after
+
 if TYPE_CHECKING:  # a Mesh is told by its arrays, so this module needs no import of it
     from .mesh import Mesh
 
@@ -214,13 +216,7 @@ def _touching_cells(cells: NDArray[np.int64]) -> NDArray[np.int64]:
         return i
 
     def find(x, y):  # binary search for the cell (x, y)
-        lo, hi = 0, c
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if cells[mid, 0] < x or (cells[mid, 0] == x and cells[mid, 1] < y):
-                lo = mid + 1
-            else:
-                hi = mid
+        lo = first_row_at_or_after(cells, 0, c, x, y)
         return lo if lo < c and cells[lo, 0] == x and cells[lo, 1] == y else -1
 
     for i in range(c):

@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from ..jit import threads_for
+from ..jit import first_row_at_or_after, threads_for
 from ..mesh import Mesh
 from ..numbering import edge_point, incidence
 from ..partition import partition_many
@@ -231,19 +231,6 @@ def _packed_neighbours(points, start, room, first, ids, xy):
 
 
 @njit(cache=True)
-def _first_at_or_after(xy, lo, hi, x, y):
-    """The first place ``h`` in ``[lo, hi)`` whose ``xy[h]`` is not before ``(x, y)`` in
-    ``(x, y)`` order (``hi`` if none): a bisection of a :func:`vertex_neighbours` run."""
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if xy[mid, 0] < x or (xy[mid, 0] == x and xy[mid, 1] < y):
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
-@njit(cache=True)
 def _same_point(points, v, x, y):
     return points[v, 0] == x and points[v, 1] == y
 
@@ -259,7 +246,7 @@ def _far_corner(points, first, ids, xy, a, p, k):
     tol = 1e-6 * (abs(dx) + abs(dy)) + 1e-13 * (abs(points[p, 0]) + abs(points[p, 1]))
     bx, by = points[a, 0] + (k + 1) * dx, points[a, 1] + (k + 1) * dy  # b, about
     if k == 1:
-        h = _first_at_or_after(xy, first[p], first[p + 1], bx - tol, -np.inf)
+        h = first_row_at_or_after(xy, first[p], first[p + 1], bx - tol, -np.inf)
         while h < first[p + 1] and xy[h, 0] <= bx + tol:
             y = ids[h]
             if y != a and abs(xy[h, 1] - by) <= tol and \
@@ -269,13 +256,13 @@ def _far_corner(points, first, ids, xy, a, p, k):
             h += 1
         return -1, -1
     cx, cy = points[a, 0] + 2 * dx, points[a, 1] + 2 * dy  # p2, about
-    h = _first_at_or_after(xy, first[p], first[p + 1], cx - tol, -np.inf)
+    h = first_row_at_or_after(xy, first[p], first[p + 1], cx - tol, -np.inf)
     while h < first[p + 1] and xy[h, 0] <= cx + tol:
         x = ids[h]
         h += 1
         if x == a or abs(xy[h - 1, 1] - cy) > tol:
             continue
-        h2 = _first_at_or_after(xy, first[x], first[x + 1], bx - tol, -np.inf)
+        h2 = first_row_at_or_after(xy, first[x], first[x + 1], bx - tol, -np.inf)
         while h2 < first[x + 1] and xy[h2, 0] <= bx + tol:
             y = ids[h2]
             h2 += 1
@@ -295,7 +282,7 @@ def _near_point(points, first, ids, xy, b, c, j, k):
     or -1 (by bisection of ``b``'s run)."""
     x0 = edge_point(points[b, 0], points[c, 0], j, k)
     x1 = edge_point(points[b, 1], points[c, 1], j, k)
-    h = _first_at_or_after(xy, first[b], first[b + 1], x0, x1)
+    h = first_row_at_or_after(xy, first[b], first[b + 1], x0, x1)
     if h < first[b + 1] and xy[h, 0] == x0 and xy[h, 1] == x1:
         return ids[h]
     return -1

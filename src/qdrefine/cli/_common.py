@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 #: A command module names its own in ``COMPILES`` or ``compiled(args)``; ``READ`` if not.
 READ = ("check.points", "check.edges", "numbering", "predicates", "sweep")
 KERNELS = (*READ, "kernels", "io._text")
-LOCAL_KERNELS = (*KERNELS, *(f"adaptive.{name}" for name in (
+LOCAL_KERNELS = (*KERNELS, "jit", *(f"adaptive.{name}" for name in (
     "api", "coarsen", "edgekeys", "families", "history", "labels", "longest_edge", "output",
     "patterns", "plan", "reach", "red_families", "window")))
 

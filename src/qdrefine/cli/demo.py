@@ -42,7 +42,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
 
 def compiled(args: argparse.Namespace) -> tuple[str, ...]:
     """The modules whose kernels the demo compiles on a first run."""
-    return _common.LOCAL_KERNELS if args.afem else (*_common.KERNELS, "quality")
+    return _common.LOCAL_KERNELS if args.afem else (*_common.KERNELS, "quality", "jit")
 
 
 def run(args: argparse.Namespace) -> int:
