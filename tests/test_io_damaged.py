@@ -249,3 +249,18 @@ def test_a_vtu_triangle_cell_of_four_points_is_named(tmp_path):
     assert data.count(offsets) == 1
     path.write_bytes(data.replace(offsets, np.array([3, 6, 10, 12], "<i8").tobytes()))
     _refused(path, "cell 2 is a triangle (VTK type 5) of 4 points, not 3")
+
+
+def test_a_second_tag_field_is_read_as_cell_data_not_dropped(tmp_path):
+    """A VTK file with both ``gmsh:physical`` and ``tag`` cell data: the first is the
+    tags, the other was silently dropped (the VTU reader kept it as cell data)."""
+    import meshio
+
+    path = tmp_path / "m.vtk"
+    cells = [("triangle", T)]
+    meshio.write(path, meshio.Mesh(np.c_[P, np.zeros(5)], cells, cell_data={
+        "gmsh:physical": [np.array([1, 1, 2, 2])], "tag": [np.array([7, 8, 9, 10])]}),
+        binary=True)
+    mesh = qdrefine.read(path)
+    np.testing.assert_array_equal(mesh.cell_tags, [1, 1, 2, 2])
+    np.testing.assert_array_equal(mesh.cell_data["tag"], [7, 8, 9, 10])

@@ -2,8 +2,9 @@
 
 VTK legacy, Medit, OFF, OBJ, STL and PLY, plus what the fast readers hand over (MSH 4.0,
 VTU files in encodings other than appended raw / zlib). Tags are the cell data
-``gmsh:physical``, ``medit:ref``, ``tag`` or ``cell_tags`` (first found); VTK legacy files
-also carry point and cell data.
+``gmsh:physical``, ``medit:ref``, ``tag`` or ``cell_tags`` (the first found; the others
+are read as cell data, as the VTU reader does, not dropped); VTK legacy files also carry
+point and cell data.
 """
 
 from __future__ import annotations
@@ -208,7 +209,7 @@ def _arrays(m, made_up: set[str] = frozenset()) -> tuple:
     cell_data = {}
     triangles = [i for i, b in enumerate(m.cells) if b.type == "triangle"]
     for name, per_block in m.cell_data.items():
-        if name in TAG_KEYS or name in _SKIP or name in made_up or not triangles:
+        if name == key or name in _SKIP or name in made_up or not triangles:
             continue
         parts = [_native(per_block[i]) for i in triangles]
         if all(p.dtype.kind in "biuf" for p in parts):
