@@ -339,7 +339,9 @@ print(code, *ran)
 
 @pytest.mark.parametrize("argv", [
     ["info", "{m}"], ["check", "{m}"], ["quality", "{m}"], ["compare", "{m}", "--levels", "1"],
-    ["convert", "{m}", "{d}/c.vtu"], ["plot", "{m}", "{d}/p.png"], ["diagram"],
+    ["convert", "{m}", "{d}/c.vtu"], ["convert", "{m}", "{d}/c.msh"],
+    ["convert", "{m}", "{d}/c.obj"],
+    ["plot", "{m}", "{d}/p.png"], ["diagram"],
     ["refine", "{m}", "{d}/r.msh"], ["refine", "{m}", "{d}/r.msh", "--mark-box", "0,0,0.5,0.5"],
     ["coarsen", "{h}", "{d}/c.msh", "--all"]], ids=lambda argv: "-".join(argv[:4]))
 def test_a_first_run_names_every_module_it_compiles(tmp_path, argv):
@@ -366,6 +368,15 @@ def test_a_first_run_names_every_module_it_compiles(tmp_path, argv):
     for module in named:  # each names a module with cached kernels
         source = importlib.import_module(f"qdrefine.{module}")
         assert "cache=True" in Path(source.__file__).read_text(), module
+
+
+def test_refine_on_dask_names_the_chunk_kernels():
+    """The workers and the output's assembly run :mod:`qdrefine.distributed.chunks`
+    (a first ``--dask`` run compiled them for seconds without the note)."""
+    from qdrefine import cli as cli_module
+
+    parsed = cli_module._parser().parse_args(["refine", "a.zarr", "b.zarr", "--dask"])
+    assert "distributed.chunks" in parsed.compiled(parsed)
 
 
 def test_local_refinement_names_every_adaptive_module_with_kernels():

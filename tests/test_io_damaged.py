@@ -179,16 +179,26 @@ def test_xdmf_binary_items_never_wait_on_a_fifo(tmp_path):
         qdrefine.read(_binary_xdmf(tmp_path, "fifo.bin"))
 
 
-def test_xdmf_binary_items_are_read_next_to_the_xdmf_file(tmp_path, monkeypatch):
-    """meshio opens a binary item's file from the working directory: from another one, a
-    file of the same name there was read instead, silently."""
+def test_xdmf_binary_items_are_read_as_meshio_names_them(tmp_path, monkeypatch):
+    """meshio opens a binary item's file by its name from the working directory (and
+    writes it so): a name that leads elsewhere from the XDMF file's folder, to another
+    file of the same name, was read silently; one written by meshio into a sub-folder
+    reads."""
+    import meshio
+
     sub = tmp_path / "sub"
     sub.mkdir()
+    monkeypatch.chdir(tmp_path)
+    meshio.xdmf.write("sub/m.xdmf", meshio.Mesh(P[:3], [("triangle", np.array([[0, 1, 2]]))]),
+                      data_format="Binary")
+    assert qdrefine.read(sub / "m.xdmf").n_triangles == 1  # items name "sub/m0.bin"
     (sub / "pts.bin").write_bytes(np.array([0, 0, 5, 0, 0, 5], "<f8").tobytes())
     (tmp_path / "pts.bin").write_bytes(np.array([0, 0, 1, 0, 0, 1], "<f8").tobytes())
     path = _binary_xdmf(sub, "pts.bin")
-    monkeypatch.chdir(tmp_path)
-    with pytest.raises(ValueError, match="working directory"):
+    with pytest.raises(ValueError, match="two different files"):
+        qdrefine.read(Path("sub") / "bin.xdmf")
+    (tmp_path / "pts.bin").unlink()
+    with pytest.raises(ValueError, match="where there is none"):
         qdrefine.read(Path("sub") / "bin.xdmf")
     monkeypatch.chdir(sub)
     assert qdrefine.read(path).points.max() == 5
@@ -264,3 +274,36 @@ def test_a_second_tag_field_is_read_as_cell_data_not_dropped(tmp_path):
     mesh = qdrefine.read(path)
     np.testing.assert_array_equal(mesh.cell_tags, [1, 1, 2, 2])
     np.testing.assert_array_equal(mesh.cell_data["tag"], [7, 8, 9, 10])
+
+
+def test_damaged_records_of_names_and_shapes_never_end_in_a_traceback(tmp_path):
+    """A VTU physical-name record with a tag of 1e999 raised OverflowError (a traceback);
+    a recorded shape of 10**24 rows beside a 0 (a zero-width field) refused the file
+    without its name."""
+    path = tmp_path / "m.vtu"
+    qdrefine.write(path, Mesh(P, T, cell_tags=np.array([1, 1, 2, 2]),
+                              physical_names={(2, 1): "abc"}))
+    data = path.read_bytes()
+    assert data.count(b'[[2, 1, "abc"]]') == 1
+    path.write_bytes(data.replace(b'[[2, 1, "abc"]]', b'[[9e999,1,"a"]]'))
+    _refused(path, "physical names are not (dim, tag, name) triples")
+    path = tmp_path / "m.msh"
+    qdrefine.write(path, Mesh(P, T, point_data={"e": np.zeros((5, 0))}))
+    text = path.read_text()
+    assert text.count('{"shape": [0], "dtype": "<f8"}') == 1
+    path.write_text(text.replace('{"shape": [0], "dtype": "<f8"}',
+                                 '{"shape": [1000000000000000000000000, 0], "dtype": "<f8"}'))
+    with pytest.warns(UserWarning, match="cannot be made"):
+        qdrefine.read(path)
+
+
+def test_msh_refuses_unsigned_integers_beyond_2_53(tmp_path):
+    """uint64 values near 2**64 wrapped to small ones in the check and were written as
+    2**64."""
+    path = tmp_path / "m.msh"
+    big = np.array([0, 1, 2, 3, 2**64 - 1], dtype=np.uint64)
+    with pytest.raises(ValueError, match="beyond 2\\*\\*53"):
+        qdrefine.write(path, Mesh(P, T, point_data={"id": big}))
+    assert not path.exists()
+    qdrefine.write(path, Mesh(P, T, point_data={"id": big % 2**53}))  # within: kept
+    assert qdrefine.read(path).point_data["id"].dtype == np.uint64

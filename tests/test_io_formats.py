@@ -450,6 +450,8 @@ def test_msh40_written_by_gmsh_reads(tmp_path):
         gmsh.model.addPhysicalGroup(2, [r], 11, "plate")
         gmsh.model.addPhysicalGroup(1, [1], 21, "bottom")
         gmsh.model.addPhysicalGroup(1, [1, 2], 22, "bottom and right")
+        gmsh.model.addPhysicalGroup(0, [1], 31, "corner")  # a point in two groups: no loss
+        gmsh.model.addPhysicalGroup(0, [1], 32, "origin")
         gmsh.option.setNumber("Mesh.MeshSizeMax", 0.3)
         gmsh.model.mesh.generate(2)
         gmsh.option.setNumber("Mesh.Binary", 0)
@@ -458,8 +460,10 @@ def test_msh40_written_by_gmsh_reads(tmp_path):
             gmsh.write(str(tmp_path / f"m{version}.msh"))
     old, new = tmp_path / "m4.0.msh", tmp_path / "m4.1.msh"
     assert old.read_text().split("\n")[1].split()[0] == "4"
-    with pytest.warns(UserWarning, match="several physical groups.*groups 21"):
+    with pytest.warns(UserWarning, match="several physical groups") as caught:
         old = qdrefine.read(old)
+    groups = [str(w.message) for w in caught if "several physical groups" in str(w.message)]
+    assert len(groups) == 1 and "a curve is" in groups[0] and "groups 21" in groups[0], groups
     new = qdrefine.read(new)
     np.testing.assert_array_equal(old.points, new.points)
     np.testing.assert_array_equal(old.triangles, new.triangles)

@@ -58,4 +58,7 @@ def _restore(values: NDArray, spec: object, rows: int) -> tuple[str | None, NDAr
         same = np.array_equal(out.astype(values.dtype), values, equal_nan=dtype.kind == "f")
     if not same:
         return f"some stored values are not {dtype} values", None
-    return None, out.reshape((rows, *shape))
+    try:
+        return None, out.reshape((rows, *shape))
+    except ValueError:  # e.g. a size of 10**24 beside a 0
+        return f"shape {shape} cannot be made", None

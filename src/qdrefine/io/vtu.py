@@ -162,7 +162,7 @@ def _read(path: Path, data: bytes) -> RawMesh:
     meta = _meta(root, array)
     try:
         raw.physical_names = {(int(d), int(t)): str(nm) for d, t, nm in meta.get("names", [])}
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"field data {_META!r}: its physical names are not (dim, tag, "
                          "name) triples") from None
     shapes = meta.get("shapes")

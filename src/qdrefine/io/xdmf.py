@@ -126,20 +126,27 @@ def _check_heavy_data(path: Path) -> None:
 
 
 def _check_binary_file(path: Path, name: str) -> None:
-    """A ``Format="Binary"`` data item's file: a regular file (a FIFO would hang the
-    reader), and the one its name means next to the XDMF file: meshio looks for it from the
-    working directory, so a relative name that leads elsewhere from there is refused
-    rather than read from another file."""
-    meant, opened = path.parent / name, Path(name)
-    if not meant.exists():
-        raise FileNotFoundError(f"{meant}: no such file (a binary data item of {path.name})")
-    if not meant.is_file():
-        raise OSError(f"{meant}: not a regular file (a binary data item of {path.name}; a "
-                      "FIFO or device is not read)")
-    if not opened.is_file() or not opened.samefile(meant):
-        raise ValueError(f"{path}: the binary data item {name!r} is read from the working "
-                         f"directory, where it is not {meant}; read the file from its own "
-                         "folder, or give the item's file an absolute name")
+    """A ``Format="Binary"`` data item's file, which meshio opens by its name from the
+    working directory (as meshio writes it): a regular file (a FIFO would hang the
+    reader); refused when it is not there but next to the XDMF file, or when the name
+    leads to two different files from the two places (which one is meant is unknown)."""
+    opened, beside = Path(name), path.parent / name
+    for candidate in (opened, beside):
+        if candidate.exists() and not candidate.is_file():
+            raise OSError(f"{candidate}: not a regular file (a binary data item of "
+                          f"{path.name}; a FIFO or device is not read)")
+    if opened.is_file():
+        if beside.is_file() and not opened.samefile(beside):
+            raise ValueError(f"{path}: the binary data item {name!r} names {opened} from the "
+                             f"working directory and {beside} from the XDMF file's folder, "
+                             "two different files; read it from its own folder, or give the "
+                             "item's file an absolute name")
+        return
+    if beside.is_file():
+        raise ValueError(f"{path}: the binary data item {name!r} is opened from the working "
+                         f"directory, where there is none ({beside} is next to the XDMF "
+                         "file); read the file from its own folder")
+    raise FileNotFoundError(f"{opened}: no such file (a binary data item of {path.name})")
 
 
 def _check_set(path: Path) -> None:

@@ -808,19 +808,19 @@ def _field(f: _File, c: _Content, where: str, name: str, values: NDArray, rows: 
 
 def _meshio_fallback(f: _File, c: _Content) -> RawMesh:
     """MSH 4.0, read by meshio's MSH 4.0 reader (meshio takes the version "4", which Gmsh
-    writes for MSH 4.0, as 4.1: the header is given to it as "4.0"); a warning when an
-    entity is in several physical groups (meshio keeps the first)."""
+    writes for MSH 4.0, as 4.1: the header is given to it as "4.0"); a warning when a
+    curve is in several physical groups (meshio keeps each line's first group, where MSH
+    4.1 and 2.2 give a tagged edge per group; a surface keeps one tag in every version)."""
     from ..meshio_formats import read_with_meshio
 
-    several = sorted(key for key, tags in c.entities.items() if len(tags) > 1)
+    several = sorted(key for key, tags in c.entities.items() if len(tags) > 1 and key[0] == 1)
     if several:
-        dim, tag = several[0]
-        count = "an entity is" if len(several) == 1 else f"{len(several)} entities are"
-        warnings.warn(f"{f.path}: {count} in several physical groups "
-                      f"(the first: dimension {dim}, entity {tag}, groups "
-                      f"{_groups(c, dim, c.entities[several[0]])}); MSH 4.0 is read by meshio, "
-                      "which keeps each element's first group (MSH 4.1 and 2.2 keep them all)",
-                      stacklevel=2)
+        _, tag = several[0]
+        count = "a curve is" if len(several) == 1 else f"{len(several)} curves are"
+        warnings.warn(f"{f.path}: {count} in several physical groups (the first: curve "
+                      f"{tag}, groups {_groups(c, 1, c.entities[several[0]])}); MSH 4.0 is "
+                      "read by meshio, which keeps each line's first group (from MSH 4.1 and "
+                      "2.2 files, a tagged edge per group)", stacklevel=2)
 
     def msh40():  # a copy with the header "4.0" (meshio's reader needs a real file)
         import meshio

@@ -365,7 +365,7 @@ def _data_sections(path: Path, mesh, point_data: dict, cell_data: dict, binary: 
                                        ("cell", "ElementData", cell_data, 1)):
         for name, value in fields.items():
             a = np.asarray(value)
-            if a.dtype.kind in "iub" and a.size and np.abs(a.astype(np.int64)).max() >= EXACT_INT:
+            if a.dtype.kind in "iu" and a.size and (a.max() >= EXACT_INT or a.min() <= -EXACT_INT):
                 raise ValueError(f"{path}: {where} data {name!r} holds integers beyond 2**53, "
                                  "which Gmsh's double values cannot hold exactly")
             if '"' in name or "\n" in name:
