@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 import qdrefine
 from meshes import jittered_grid
 from qdrefine import Mesh, examples, io, store
+from qdrefine.cli import main
 from qdrefine.store import export
 
 FIELDS = ("points", "triangles", "cell_tags", "edges", "edge_tags")
@@ -445,6 +446,19 @@ def test_file_urls_are_local_paths(tmp_path):
         refine_store(url, tmp_path / "m.zarr")
     with pytest.raises(ValueError, match="the target would be inside the source store"):
         refine_store(tmp_path / "m.zarr", f"{url}/inner.zarr")
+    (tmp_path / "link").symlink_to(tmp_path)  # through a link: replaced its source too
+    with pytest.raises(ValueError, match="the target would overwrite the source"):
+        refine_store(url, tmp_path / "link" / "m.zarr")
+    (tmp_path / "link").unlink()
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+    memory = f"memory://same-{os.getpid()}/x.zarr"
+    store.create(memory, examples.square(2))
+    with pytest.raises(ValueError, match="the target would overwrite the source"):
+        refine_store(memory, memory.replace("memory://", "memory:///"))
+    store.remove(memory)
+    for argv in (["convert", url, f"file://{tmp_path}/m.zarr/"],
+                 ["refine", url, f"file://{tmp_path}/m.zarr", "--dask"]):
+        assert main(argv) == 1  # refused before any work: no cluster starts
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
 
 
@@ -493,3 +507,44 @@ def test_a_target_lost_between_two_renames_is_put_back(tmp_path):
     assert store.clean(tmp_path / "m.zarr") == []
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.zarr"]
     same_mesh(examples.square(2), store.to_mesh(tmp_path / "m.zarr"))
+
+
+def test_names_with_pattern_characters_touch_only_their_own_store():
+    """fsspec's ``rm`` and ``mv`` read ``[``, ``?`` and ``*`` as patterns: replacing
+    ``out[1].zarr`` on an object store removed the unrelated ``out1.zarr`` and left the
+    temporary behind; ``x?.zarr`` was left broken."""
+    import fsspec
+
+    fs = fsspec.filesystem("memory")
+    root = f"/glob-{os.getpid()}"
+    mesh = examples.square(3)
+    try:
+        store.create(f"memory://{root}/out1.zarr", mesh, chunk_size=5)
+        for name in ("out[1].zarr", "x?.zarr", "a*.zarr"):
+            for chunk in (7, 4):  # a new store, then a replaced one
+                store.create(f"memory://{root}/{name}", mesh, chunk_size=chunk)
+                back = store.open(f"memory://{root}/{name}")
+                assert back.chunk_size == chunk
+                np.testing.assert_array_equal(back.to_mesh().triangles, mesh.triangles)
+        assert store.is_store(f"memory://{root}/out1.zarr")
+        assert sorted(p.rsplit("/", 1)[-1] for p in fs.ls(root, detail=False)) == \
+            ["a*.zarr", "out1.zarr", "out[1].zarr", "x?.zarr"]  # no temporaries left
+    finally:
+        fs.rm(root, recursive=True)
+
+
+def test_a_url_name_with_a_double_colon_is_refused():
+    """``memory://b/a::b.zarr`` is read by fsspec as a chain and was written under
+    ``memory://b/a``."""
+    with pytest.raises(ValueError, match="cannot contain '::'"):
+        store.create("memory://b/a::b.zarr", examples.square(2))
+
+
+def test_the_same_store_spelled_otherwise_is_the_same_place(tmp_path):
+    from qdrefine.store.locations import canonical, location
+
+    (tmp_path / "s.zarr").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path)
+    same = [tmp_path / "s.zarr", f"file://{tmp_path}/s.zarr", tmp_path / "link" / "s.zarr"]
+    assert len({canonical(location(p)) for p in same}) == 1
+    assert canonical(location("memory:///b/x.zarr")) == canonical(location("memory://b/x.zarr"))

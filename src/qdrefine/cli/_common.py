@@ -242,6 +242,18 @@ def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
     return out
 
 
+def check_url_output(path: str, inputs: tuple[str, ...] = ()) -> None:
+    """For an output given as a URL (``file://`` included), what :func:`check_output` checks
+    of a path that a URL can say: it is not one of the inputs, however spelled (links,
+    ``file://``, ``memory:///b`` against ``memory://b``)."""
+    from ..store.locations import canonical
+
+    for i in inputs:
+        if canonical(location(path)) == canonical(location(i)):
+            raise ValueError(f"{path}: the output would overwrite the input; choose another "
+                             "name")
+
+
 def save_figure(fig: Any, path: str | Path, dpi: int = 150) -> None:
     """Save a matplotlib figure atomically, then close it."""
     import matplotlib.pyplot as plt

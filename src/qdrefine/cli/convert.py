@@ -38,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
             if not to_store or args.binary or args.compress:
                 raise ValueError(f"{args.output}: a URL must name a Zarr store (ending in "
                                  f"{_common.STORE}), without --binary or --compress")
+            _common.check_url_output(args.output, (args.input,))
         else:
             _common.check_output(args.output, (args.input,), kinds="any", binary=args.binary)
             _common.check_format_version(args.output, args.format_version)

@@ -23,6 +23,7 @@ from ..arguments import as_count
 from ..interrupts import sigterm_as_interrupt
 from ..io import WRITE_ERRNOS, cannot_write
 from ..schemes import Scheme, get_scheme
+from ..store.locations import canonical
 from .cluster import (
     PAUSE_TIMEOUT,
     STALL_TIMEOUT,
@@ -139,9 +140,10 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
     levels = as_count(levels, "levels")
     src = mesh_store.open(source)
     url = mesh_store.location(target)
-    if url == src.path:
+    here, there = canonical(url), canonical(src.path)
+    if here == there:
         raise ValueError(f"{url}: the target would overwrite the source; choose another path")
-    if url.startswith(src.path.rstrip("/") + "/"):
+    if here.startswith(there.rstrip("/") + "/"):
         raise ValueError(f"{url}: the target would be inside the source store {src.path}; "
                          "choose another path")
     if src.n_points > MAX_POINTS:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import shutil
 import signal
 import socket
 from collections.abc import Iterator
@@ -129,10 +130,33 @@ def root_of(url: str) -> str:
 
 
 def remove(url: str) -> None:
-    """Remove whatever is at ``url`` (a store, a temporary), if anything."""
+    """Remove whatever is at ``url`` (a store, a temporary), if anything; only that (fsspec's
+    ``rm`` reads ``[``, ``?`` and ``*`` in a name as a pattern: ``out[1].zarr`` removed
+    ``out1.zarr``, so the files are listed and removed one by one)."""
     fs, root = filesystem(url)
     with contextlib.suppress(FileNotFoundError, OSError):
-        fs.rm(root, recursive=True)
+        if is_local(url):
+            if os.path.isdir(root) and not os.path.islink(root):
+                shutil.rmtree(root)
+            else:
+                os.remove(root)
+            return
+        _remove_tree(fs, root)
+
+
+def _remove_tree(fs, root: str) -> None:
+    """Every object under ``root`` of an fsspec filesystem, then its folders, by name."""
+    if fs.isfile(root):
+        fs.rm_file(root)
+        return
+    found = fs.find(root, withdirs=True, detail=True)
+    for path, info in found.items():
+        if info.get("type") != "directory":
+            fs.rm_file(path)
+    folders = [p for p, info in found.items() if info.get("type") == "directory"] + [root]
+    for folder in sorted(set(folders), key=len, reverse=True):
+        with contextlib.suppress(FileNotFoundError, OSError, NotImplementedError):
+            fs.rmdir(folder)
 
 
 def check_target(url: str) -> None:
@@ -170,10 +194,11 @@ def replace(tmp: str, url: str) -> None:
     # a store), the new one's last (it becomes one only when everything else is there).
     if fs.exists(root):
         with contextlib.suppress(FileNotFoundError):
-            fs.rm(f"{root}/zarr.json")
-        fs.rm(root, recursive=True)
+            fs.rm_file(f"{root}/zarr.json")
+        _remove_tree(fs, root)
     files = sorted(fs.find(tmp_root))
     head = f"{tmp_root}/zarr.json"
-    for f in [f for f in files if f != head] + [head]:
-        fs.mv(f, root + f[len(tmp_root):])
+    for f in [f for f in files if f != head] + [head]:  # by name: no pattern expansion
+        fs.cp_file(f, root + f[len(tmp_root):])
+        fs.rm_file(f)
     remove(tmp)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["PathLike", "location", "is_local", "filesystem", "join", "split"]
+__all__ = ["PathLike", "location", "is_local", "filesystem", "canonical", "join", "split"]
 
 PathLike = str | os.PathLike
 
@@ -38,9 +38,23 @@ def filesystem(url: str):
     if is_local(url) and "::" in url:  # fsspec and Zarr would open another path
         raise ValueError(f"{url}: a local store path cannot contain '::' (fsspec reads it "
                          "as URL chaining); rename it")
+    if any("://" not in part for part in url.split("::")[1:]):  # memory://b/a::b.zarr
+        raise ValueError(f"{url}: a store name cannot contain '::' (fsspec reads it as URL "
+                         "chaining and would write elsewhere); rename it")
     fs, root = fsspec.core.url_to_fs(url)
     fs.invalidate_cache()
     return fs, root
+
+
+def canonical(url: str) -> str:
+    """One spelling of the place ``url`` (from :func:`location`) names, to compare two:
+    a local path with its links resolved, a URL as its filesystem's protocol and path
+    (``memory:///b/x.zarr`` and ``memory://b/x.zarr`` are one place)."""
+    if is_local(url):
+        return os.path.realpath(url[len("file://"):] if url.startswith("file://") else url)
+    fs, root = filesystem(url)
+    protocol = fs.protocol if isinstance(fs.protocol, str) else fs.protocol[0]
+    return f"{protocol}://{root.rstrip('/')}"
 
 
 def join(url: str, name: str) -> str:
