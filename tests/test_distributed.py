@@ -621,3 +621,57 @@ def test_a_script_without_a_main_guard_fails_instead_of_hanging(tmp_path):
     assert run.stderr.count("Traceback") == 1, run.stderr
     assert run.stderr.rstrip().endswith("worker processes failed to start (their messages "
                                         "are above)")
+
+
+def _damaged(tmp_path: Path, name: str, damage) -> Path:
+    """A store of the plate (chunks of 100 rows) with ``damage(folder)`` done to it."""
+    path = tmp_path / name
+    store.create(path, examples.plate_with_hole(), chunk_size=100)
+    damage(path)
+    return path
+
+
+@pytest.mark.parametrize("levels", [0, 1])
+@pytest.mark.parametrize("array, damage, message", [
+    ("cell_tags", lambda p: (p / "cell_tags" / "c" / "1").unlink(),
+     "cell_tags row 100 holds the fill value"),
+    ("triangles", lambda p: __import__("shutil").rmtree(p / "triangles" / "c" / "1"),
+     r"(triangles row|triangle) 100 (holds the fill value|\(-1, -1, -1\) has a vertex index)"),
+])
+def test_a_store_with_a_missing_chunk_is_refused_not_refined(tmp_path, client, levels, array,
+                                                             damage, message):
+    """A chunk never written reads as the fill value: tags of -2**63 were refined into a
+    store marked complete (and ``levels=0`` copied any damage), which ``to_mesh`` took as
+    data or refused only later."""
+    path = _damaged(tmp_path, "in.zarr", damage)
+    with pytest.raises(ValueError, match=message):
+        refine_store(path, tmp_path / "out.zarr", levels=levels, client=client)
+    assert not (tmp_path / "out.zarr").exists()
+    with pytest.raises(ValueError, match="holds the fill value|has a vertex index outside"):
+        store.to_mesh(path)
+
+
+def test_unsigned_tags_beyond_int64_are_refused_as_in_memory(tmp_path, client):
+    """They became tag -1 in the output."""
+    mesh = examples.plate_with_hole()
+    path = tmp_path / "u.zarr"
+    store.create(path, mesh, chunk_size=100)
+    group = zarr.open_group(path, mode="r+", use_consolidated=False)
+    shape = group["cell_tags"].shape
+    del group["cell_tags"]
+    group.create_array("cell_tags", shape=shape, dtype=np.uint64, chunks=(100,),
+                       fill_value=0)[...] = np.full(shape, 2**64 - 1, dtype=np.uint64)
+    zarr.consolidate_metadata(path)
+    with pytest.raises(ValueError, match=r"cell_tags row \d+ holds 18446744073709551615"):
+        refine_store(path, tmp_path / "out.zarr", client=client)
+    assert not (tmp_path / "out.zarr").exists()
+
+
+def test_new_points_below_the_coordinate_range_are_refused_as_in_memory(tmp_path, client):
+    mesh = Mesh([[1.5e-100, 0], [1, 0], [-1e-100, 1]], [[0, 1, 2]])
+    with pytest.raises(ValueError, match="below the supported range"):
+        refine(mesh)
+    store.create(tmp_path / "low.zarr", mesh)
+    with pytest.raises(ValueError, match="below the supported range"):
+        refine_store(tmp_path / "low.zarr", tmp_path / "out.zarr", client=client)
+    assert not (tmp_path / "out.zarr").exists()

@@ -56,7 +56,7 @@ from .. import store as mesh_store
 from ..jit import one_thread
 from ..kernels import emit
 from ..mesh import index_dtype
-from ..predicates import check_coordinates, orient_signs
+from ..predicates import COORDINATE_RANGE, below_range, check_coordinates, orient_signs
 from ..schemes import Scheme, get_scheme
 from ..uniform import split_tagged_edges
 from . import cluster
@@ -402,10 +402,20 @@ def copy_store(client: Client, src: mesh_store.MeshStore, out: str, metadata: di
     specs = {n: (group[n].shape, group[n].dtype) for n in names}
     target = mesh_store.new_group(out, specs, {n: int(group[n].chunks[0]) for n in names},
                                   metadata)
-    sources = {n: da.from_zarr(group[n]) for n in names}
+    # checked as they are copied: the copy of a damaged store must not be marked complete
+    sources = {n: da.from_zarr(group[n]).map_blocks(_checked_block, src.path, src.n_points, n,
+                                                   dtype=group[n].dtype)
+               for n in names}
     sources |= mesh_store.node_coordinates(sources["points"])
     cluster.compute(client, [da.store(list(sources.values()), [target[n] for n in sources],
                                       lock=False, compute=False)], **timeouts)
+
+
+def _checked_block(block: NDArray, path: str, n_points: int, name: str,
+                   block_info: dict | None = None) -> NDArray:
+    """A block of a source array, checked (:func:`qdrefine.store.layout.written`)."""
+    start = block_info[0]["array-location"][0][0] if block_info else 0
+    return mesh_store.written(path, n_points, name, start, block)
 
 
 def _meta(*names: str, ints: int = 0) -> pd.DataFrame:
@@ -450,6 +460,13 @@ def _vertex_rows(job: _Job, name: str, what: str, a: int, b: int) -> NDArray[np.
         raise ValueError(f"{job.path}: {what} {a + i} {tuple(rows[i].tolist())} has a vertex "
                          f"index outside 0..{job.n - 1}")
     return rows
+
+
+def _source(job: _Job, name: str, a: int, b: int) -> NDArray:
+    """Rows ``a .. b - 1`` of the source's ``name`` array, refused where they hold the fill
+    value of a chunk never written or, for tags, values beyond int64
+    (:func:`qdrefine.store.layout.written`)."""
+    return mesh_store.written(job.path, job.n, name, a, job.src[name][a:b])
 
 
 def _corners_frame(rows: tuple[int, int], job: _Job) -> pd.DataFrame:
@@ -638,6 +655,11 @@ def _write_points(parts: list, job: _Job, a: int, b: int) -> None:
                          for p in parts])
     if len(xy) != b - a:
         raise RuntimeError(f"qdrefine internal error: {len(xy)} points for rows {a}..{b - 1}")
+    size = np.abs(xy)
+    low = ((size < COORDINATE_RANGE[0]) & (size != 0)).any(axis=1)
+    if low.any():  # as refine() in memory: the predicates are exact only in the range
+        i = int(np.flatnonzero(low)[0])
+        raise ValueError(f"{job.path}: {below_range(a + i, xy[i], None)}")
     job.out["points"][a:b] = xy
     for i, name in enumerate(mesh_store.NODE_COORDINATES):
         job.out[name][a:b] = xy[:, i]
@@ -701,7 +723,7 @@ def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: in
     global_children(children, vertices, job.n, glob)
     job.out["triangles"][a * tc:b * tc] = glob
     if "cell_tags" in job.out:
-        job.out["cell_tags"][a * tc:b * tc] = np.repeat(job.src["cell_tags"][a:b], tc)
+        job.out["cell_tags"][a * tc:b * tc] = np.repeat(_source(job, "cell_tags", a, b), tc)
     if job.next_coords is not None:
         job.next_coords[a * tc:b * tc] = child_coordinates(points, local, gid, children, k)
 
@@ -740,7 +762,7 @@ def _split_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: i
                  b: int) -> None:
     """Tagged edges ``a .. b - 1`` as ``k + 1`` pieces each (rows ``a (k+1) ..``)."""
     k = job.k
-    tagged = job.src["edges"][a:b].astype(np.int64)
+    tagged = _vertex_rows(job, "edges", "edge", a, b)
     lo, hi = tagged.min(axis=1), tagged.max(axis=1)
     gid = _global_ids(part, offsets, lo * job.n + hi)
     if (gid < 0).any():
@@ -749,7 +771,7 @@ def _split_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: i
                          "triangle")
     # split_tagged_edges looks each edge up in a sorted edge list: give it these edges
     order = np.lexsort((hi, lo))
-    pieces, tags = split_tagged_edges(tagged, job.src["edge_tags"][a:b],
+    pieces, tags = split_tagged_edges(tagged, _source(job, "edge_tags", a, b),
                                       np.stack([lo, hi], axis=1)[order], job.n, k,
                                       rank=gid[order])
     job.out["edges"][a * (k + 1):b * (k + 1)] = pieces

@@ -63,6 +63,7 @@ from .layout import (
     node_coordinates,
     open,
     to_mesh,
+    written,
 )
 from .lifecycle import clean, remove, writing
 from .locations import PathLike, filesystem, is_local, location
@@ -70,4 +71,4 @@ from .locations import PathLike, filesystem, is_local, location
 __all__ = ["MeshStore", "create", "open", "to_mesh", "from_file", "to_file", "is_store",
            "clean", "location", "filesystem", "new_group", "finish", "remove", "writing",
            "node_coordinates", "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT", "ARRAYS",
-           "NODE_COORDINATES", "DIMENSIONS", "PathLike", "is_local"]
+           "NODE_COORDINATES", "DIMENSIONS", "PathLike", "is_local", "written"]

@@ -26,6 +26,7 @@ from .layout import (
     node_coordinates,
     open,
     to_mesh,
+    written,
 )
 from .lifecycle import writing
 from .locations import PathLike, location
@@ -157,41 +158,8 @@ def rows(s: MeshStore, name: str, step: int | None = None) -> Iterator[tuple[int
     z = s.zarr_array(name)
     step = step or z.chunks[0]
     for start in range(0, z.shape[0], step):
-        yield start, _written(s, name, start, z[start:start + step])
+        yield start, written(s.path, s.n_points, name, start, z[start:start + step])
 
 
 def rows_between(s: MeshStore, name: str, start: int, stop: int) -> NDArray:
-    return _written(s, name, start, s.zarr_array(name)[start:stop])
-
-
-def _written(s: MeshStore, name: str, start: int, block: NDArray) -> NDArray:
-    """``block`` (rows ``start ..`` of array ``name``), unless it holds the array's fill
-    value (:data:`~qdrefine.store.layout.FILL`): a chunk that was never written (a store
-    another tool marked complete, or damaged since), which must not pass for data; or,
-    for the arrays a streamed file would carry into an unreadable one, a vertex index
-    outside the points or a coordinate that is not finite (a damaged store)."""
-    fill = FILL.get(name)
-    hole = np.isnan(block) if fill is not None and np.isnan(fill) else block == fill
-    if fill is not None and hole.any():
-        raise ValueError(f"{s.path}: {name} row {_first(start, hole)} holds the fill value of "
-                         "a chunk that was never written: the store is incomplete or damaged")
-    if name in ("triangles", "edges") and len(block):
-        outside = (block < 0) | (block >= s.n_points)
-        if outside.any():
-            row = _first(start, outside)
-            raise ValueError(f"{s.path}: {name} row {row} {tuple(block[row - start].tolist())} "
-                             f"has a vertex index outside 0..{s.n_points - 1}: the store is "
-                             "damaged")
-    if name == "points" and len(block) and not np.isfinite(block).all():
-        row = _first(start, ~np.isfinite(block))
-        raise ValueError(f"{s.path}: points row {row} {tuple(block[row - start].tolist())} is "
-                         "not finite: the store is damaged")
-    return block
-
-
-def _first(start: int, bad: NDArray) -> int:
-    """The store row of the first row of a block (starting at row ``start``) with a ``bad``
-    entry."""
-    return start + int(np.flatnonzero(bad.reshape(len(bad), -1).any(axis=1))[0])
-
-
+    return written(s.path, s.n_points, name, start, s.zarr_array(name)[start:stop])

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..mesh import Mesh
 from .locations import PathLike, filesystem, location
@@ -25,7 +26,7 @@ if TYPE_CHECKING:
 __all__ = ["DEFAULT_CHUNK_SIZE", "FORMAT", "VERSION", "READABLE", "ARRAYS", "COLUMNS",
            "NODE_COORDINATES", "CONVENTIONS", "DIMENSIONS", "FILL", "ATTRIBUTES",
            "MeshStore", "new_group", "node_coordinates", "ugrid", "finish", "is_store",
-           "open", "to_mesh", "as_store", "chunk_size_of"]
+           "open", "to_mesh", "as_store", "chunk_size_of", "written"]
 
 #: Rows per chunk unless chosen: 262144 triangles are 3 MiB of int32 indices.
 DEFAULT_CHUNK_SIZE = 1 << 18
@@ -314,9 +315,56 @@ def to_mesh(store: MeshStore | PathLike) -> Mesh:
     """
     s = as_store(store)
     group = group_of(s.path)
-    values = {name: group[name][...] if getattr(s, name) is not None else None
-              for name in ARRAYS}
+    values = {name: written(s.path, s.n_points, name, 0, group[name][...])
+              if getattr(s, name) is not None
+              else None for name in ARRAYS}
     try:
         return Mesh(**values)
     except ValueError as exc:
         raise ValueError(f"{s.path}: {exc}") from None
+
+
+def written(path: str, n_points: int, name: str, start: int, block: NDArray
+            ) -> NDArray:
+    """``block`` (rows ``start ..`` of array ``name`` of the store at ``path``, which has
+    ``n_points`` points), unless it holds the array's fill value
+    (:data:`~qdrefine.store.layout.FILL`): a chunk that was never written (a store
+    another tool marked complete, or damaged since), which must not pass for data; or,
+    for the arrays a streamed file would carry into an unreadable one, a vertex index
+    outside the points, a coordinate that is not finite or a tag beyond int64 (a damaged
+    store)."""
+    fill = FILL.get(name)
+    hole = np.isnan(block) if fill is not None and np.isnan(fill) else block == fill
+    if fill is not None and hole.any():
+        raise ValueError(f"{path}: {name} row {_first_bad(start, hole)} holds the fill value of "
+                         "a chunk that was never written: the store is incomplete or damaged")
+    if name in ("triangles", "edges") and len(block):
+        outside = (block < 0) | (block >= n_points)
+        if outside.any():
+            row = _first_bad(start, outside)
+            raise ValueError(f"{path}: {name} row {row} {tuple(block[row - start].tolist())} "
+                             f"has a vertex index outside 0..{n_points - 1}: the store is "
+                             "damaged")
+    if name in ("cell_tags", "edge_tags"):
+        _unsigned_beyond_int64(path, name, start, block)
+    if name == "points" and len(block) and not np.isfinite(block).all():
+        row = _first_bad(start, ~np.isfinite(block))
+        raise ValueError(f"{path}: points row {row} {tuple(block[row - start].tolist())} is "
+                         "not finite: the store is damaged")
+    return block
+
+
+def _first_bad(start: int, bad: NDArray) -> int:
+    """The store row of the first row of a block (starting at row ``start``) with a ``bad``
+    entry."""
+    return start + int(np.flatnonzero(bad.reshape(len(bad), -1).any(axis=1))[0])
+
+
+
+
+def _unsigned_beyond_int64(path: str, name: str, start: int, block: NDArray) -> None:
+    """Tags stored as unsigned integers beyond int64 (they would wrap to negative tags)."""
+    if block.dtype.kind == "u" and len(block) and block.max() > np.iinfo(np.int64).max:
+        row = _first_bad(start, block > np.iinfo(np.int64).max)
+        raise ValueError(f"{path}: {name} row {row} holds {int(block[row - start])}, beyond "
+                         "int64")
