@@ -335,6 +335,11 @@ def written(path: str, n_points: int, name: str, start: int, block: NDArray
     store)."""
     fill = FILL.get(name)
     hole = np.isnan(block) if fill is not None and np.isnan(fill) else block == fill
+    if name == "points" and hole.any():  # NaN: written so, or a chunk never written
+        row = _first_bad(start, hole)
+        raise ValueError(f"{path}: points row {row} {tuple(block[row - start].tolist())} is "
+                         "not finite (NaN is also what a chunk never written reads as): the "
+                         "store is incomplete or damaged")
     if fill is not None and hole.any():
         raise ValueError(f"{path}: {name} row {_first_bad(start, hole)} holds the fill value of "
                          "a chunk that was never written: the store is incomplete or damaged")
