@@ -548,3 +548,38 @@ def test_the_same_store_spelled_otherwise_is_the_same_place(tmp_path):
     same = [tmp_path / "s.zarr", f"file://{tmp_path}/s.zarr", tmp_path / "link" / "s.zarr"]
     assert len({canonical(location(p)) for p in same}) == 1
     assert canonical(location("memory:///b/x.zarr")) == canonical(location("memory://b/x.zarr"))
+
+
+@pytest.mark.parametrize("damage, message", [
+    ("truncate", "array 'triangles' rows .* cannot be read"),
+    ("metadata list", "metadata is not a mapping"),
+    ("refinements int", "metadata is not a mapping with a list of refinements"),
+    ("array json", "its arrays cannot be listed"),
+])
+def test_damaged_stores_are_one_line_naming_the_store(tmp_path, damage, message):
+    """A truncated chunk (a codec's RuntimeError), metadata of the wrong type (TypeError)
+    and an unreadable array description ended in tracebacks or named no store."""
+    path = tmp_path / "m.zarr"
+    store.create(path, examples.plate_with_hole(), chunk_size=100)
+    if damage == "truncate":
+        chunk = next((path / "triangles" / "c").rglob("*"))
+        while chunk.is_dir():
+            chunk = next(chunk.iterdir())
+        with open(chunk, "r+b") as f:
+            f.truncate(10)
+    elif damage == "array json":
+        (path / "triangles" / "zarr.json").write_text("{bad")
+        for name in ("zarr.json",):  # no consolidated listing to fall back on
+            meta = json.loads((path / name).read_text())
+            meta.pop("consolidated_metadata", None)
+            (path / name).write_text(json.dumps(meta))
+    else:
+        meta = json.loads((path / "zarr.json").read_text())
+        meta["attributes"]["qdrefine"]["metadata"] = \
+            [1, 2] if damage == "metadata list" else {"refinements": 5}
+        meta.pop("consolidated_metadata", None)
+        (path / "zarr.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match=f"m.zarr: .*{message}"):
+        store.to_mesh(path)
+    assert main(["convert", str(path), str(tmp_path / "out.msh")]) == 1
+    assert not (tmp_path / "out.msh").exists()

@@ -435,7 +435,7 @@ def _points_frame(rows: tuple[int, int], job: _Job) -> pd.DataFrame:
     import pandas as pd
 
     a, b = rows
-    p = job.src["points"][a:b]
+    p = mesh_store.read_rows(job.path, job.src["points"], "points", a, b)
     try:
         check_coordinates(p)
     except ValueError as exc:  # the message names the row within the chunk: shift it
@@ -453,7 +453,7 @@ def _triangles(job: _Job, a: int, b: int) -> NDArray[np.int64]:
 def _vertex_rows(job: _Job, name: str, what: str, a: int, b: int) -> NDArray[np.int64]:
     """Rows ``a .. b - 1`` of the source's ``name`` array as ``int64``; ``ValueError`` naming
     the first row (a ``what``) with a vertex index outside ``0 .. n - 1``."""
-    rows = job.src[name][a:b].astype(np.int64)
+    rows = mesh_store.read_rows(job.path, job.src[name], name, a, b).astype(np.int64)
     bad = ((rows < 0) | (rows >= job.n)).any(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
@@ -466,7 +466,8 @@ def _source(job: _Job, name: str, a: int, b: int) -> NDArray:
     """Rows ``a .. b - 1`` of the source's ``name`` array, refused where they hold the fill
     value of a chunk never written or, for tags, values beyond int64
     (:func:`qdrefine.store.layout.written`)."""
-    return mesh_store.written(job.path, job.n, name, a, job.src[name][a:b])
+    block = mesh_store.read_rows(job.path, job.src[name], name, a, b)
+    return mesh_store.written(job.path, job.n, name, a, block)
 
 
 def _corners_frame(rows: tuple[int, int], job: _Job) -> pd.DataFrame:
@@ -651,7 +652,8 @@ def _write_points(parts: list, job: _Job, a: int, b: int) -> None:
     """Rows ``a .. b - 1`` of the output's ``points``, ``node_x`` and ``node_y``: ``parts``
     are, in order, a range ``(start, stop)`` of the source's points and arrays of new
     points."""
-    xy = np.concatenate([job.src["points"][p[0]:p[1]] if isinstance(p, tuple) else p
+    xy = np.concatenate([mesh_store.read_rows(job.path, job.src["points"], "points", *p)
+                         if isinstance(p, tuple) else p
                          for p in parts])
     if len(xy) != b - a:
         raise RuntimeError(f"qdrefine internal error: {len(xy)} points for rows {a}..{b - 1}")

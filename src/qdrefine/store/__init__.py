@@ -62,6 +62,7 @@ from .layout import (
     new_group,
     node_coordinates,
     open,
+    read_rows,
     to_mesh,
     written,
 )
@@ -71,4 +72,5 @@ from .locations import PathLike, filesystem, is_local, location
 __all__ = ["MeshStore", "create", "open", "to_mesh", "from_file", "to_file", "is_store",
            "clean", "location", "filesystem", "new_group", "finish", "remove", "writing",
            "node_coordinates", "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT", "ARRAYS",
-           "NODE_COORDINATES", "DIMENSIONS", "PathLike", "is_local", "written"]
+           "NODE_COORDINATES", "DIMENSIONS", "PathLike", "is_local", "written",
+           "read_rows"]

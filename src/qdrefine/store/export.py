@@ -25,6 +25,7 @@ from .layout import (
     new_group,
     node_coordinates,
     open,
+    read_rows,
     to_mesh,
     written,
 )
@@ -158,8 +159,10 @@ def rows(s: MeshStore, name: str, step: int | None = None) -> Iterator[tuple[int
     z = s.zarr_array(name)
     step = step or z.chunks[0]
     for start in range(0, z.shape[0], step):
-        yield start, written(s.path, s.n_points, name, start, z[start:start + step])
+        block = read_rows(s.path, z, name, start, min(start + step, z.shape[0]))
+        yield start, written(s.path, s.n_points, name, start, block)
 
 
 def rows_between(s: MeshStore, name: str, start: int, stop: int) -> NDArray:
-    return written(s.path, s.n_points, name, start, s.zarr_array(name)[start:stop])
+    block = read_rows(s.path, s.zarr_array(name), name, start, stop)
+    return written(s.path, s.n_points, name, start, block)

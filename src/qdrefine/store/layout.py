@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 __all__ = ["DEFAULT_CHUNK_SIZE", "FORMAT", "VERSION", "READABLE", "ARRAYS", "COLUMNS",
            "NODE_COORDINATES", "CONVENTIONS", "DIMENSIONS", "FILL", "ATTRIBUTES",
            "MeshStore", "new_group", "node_coordinates", "ugrid", "finish", "is_store",
-           "open", "to_mesh", "as_store", "chunk_size_of", "written"]
+           "open", "to_mesh", "as_store", "chunk_size_of", "written", "read_rows"]
 
 #: Rows per chunk unless chosen: 262144 triangles are 3 MiB of int32 indices.
 DEFAULT_CHUNK_SIZE = 1 << 18
@@ -266,12 +266,24 @@ def open(path: PathLike) -> MeshStore:
 
     url = location(path)
     group = group_of(url)
-    present = set(group.array_keys())
+    try:
+        present = set(group.array_keys())
+    except (ValueError, TypeError, KeyError) as exc:  # e.g. a damaged zarr.json
+        raise ValueError(f"{url}: its arrays cannot be listed ({exc}): the store is "
+                         "damaged") from None
     arrays: dict[str, Any] = {}
     for name in ARRAYS:
-        arrays[name] = da.from_zarr(group[name]) if name in present else None
+        try:
+            arrays[name] = da.from_zarr(group[name]) if name in present else None
+        except (ValueError, TypeError, KeyError) as exc:  # e.g. a damaged zarr.json
+            raise ValueError(f"{url}: array '{name}' cannot be opened ({exc})") from None
     check_arrays(url, arrays)
-    metadata = dict(group.attrs["qdrefine"].get("metadata") or {})
+    metadata = dict(group.attrs["qdrefine"].get("metadata") or {}) \
+        if isinstance(group.attrs["qdrefine"].get("metadata") or {}, dict) else None
+    refinements = None if metadata is None else metadata.get("refinements", [])
+    if not isinstance(refinements, list):
+        raise ValueError(f"{url}: the 'qdrefine' attribute's metadata is not a mapping with a "
+                         "list of refinements: the store is damaged")
     return MeshStore(url, metadata=metadata, **arrays)
 
 
@@ -315,9 +327,9 @@ def to_mesh(store: MeshStore | PathLike) -> Mesh:
     """
     s = as_store(store)
     group = group_of(s.path)
-    values = {name: written(s.path, s.n_points, name, 0, group[name][...])
-              if getattr(s, name) is not None
-              else None for name in ARRAYS}
+    values = {name: written(s.path, s.n_points, name, 0,
+                            read_rows(s.path, group[name], name, 0, group[name].shape[0]))
+              if getattr(s, name) is not None else None for name in ARRAYS}
     try:
         return Mesh(**values)
     except ValueError as exc:
@@ -373,3 +385,17 @@ def _unsigned_beyond_int64(path: str, name: str, start: int, block: NDArray) -> 
         row = _first_bad(start, block > np.iinfo(np.int64).max)
         raise ValueError(f"{path}: {name} row {row} holds {int(block[row - start])}, beyond "
                          "int64")
+
+
+def read_rows(path: str, array, name: str, start: int, stop: int) -> NDArray:
+    """Rows ``start .. stop - 1`` of the Zarr ``array`` called ``name`` of the store at
+    ``path``; a chunk that cannot be decoded (a truncated or damaged file: the codec raises
+    ``RuntimeError`` and the like) is a ``ValueError`` naming the store, the array and
+    the rows."""
+    try:
+        return array[start:stop]
+    except (RuntimeError, ValueError, TypeError, OSError) as exc:
+        if isinstance(exc, OSError) and not isinstance(exc, FileNotFoundError):
+            raise  # the system's reason (permissions, a lost connection) says it
+        raise ValueError(f"{path}: array '{name}' rows {start}..{stop - 1} cannot be read "
+                         f"({exc}): the store is damaged") from None
