@@ -241,13 +241,23 @@ def test_paths_the_workers_cannot_see(tmp_path, client, monkeypatch):
 
 def test_worker_memory_is_checked_before_starting(tmp_path):
     good = store.create(tmp_path / "in.zarr", jittered_grid(2, seed=0)).path
-    need = min_worker_memory(8) / 2**20  # the mesh's 8 triangles are one chunk
+    # the mesh's 8 triangles are one chunk, stored in a Zarr chunk of the default rows
+    need = min_worker_memory(8, store.DEFAULT_CHUNK_SIZE) / 2**20
     with local_client(n_workers=1, processes=False, memory_limit="200MiB",
                       dashboard_address=":0") as small, \
             pytest.raises(MemoryError, match=rf"memory limit of 200 MiB; chunks of 8 rows "
+                                             rf"\(stored in Zarr chunks of 262144 rows\) "
                                              rf"need at least {need:.0f} MiB"):
         refine_store(good, tmp_path / "out.zarr", client=small)
     assert leftovers(tmp_path) == ["in.zarr"]
+    # a store whose Zarr chunks are far longer than its arrays (10**8 rows: 6.7 GB were
+    # taken past the check)
+    big = store.create(tmp_path / "big.zarr", jittered_grid(2, seed=0), chunk_size=10**7).path
+    assert min_worker_memory(8) < 900 * 2**20 < min_worker_memory(8, 10**7)
+    with local_client(n_workers=1, processes=False, memory_limit="900MiB",
+                      dashboard_address=":0") as enough_for_8_rows, \
+            pytest.raises(MemoryError, match=r"stored in Zarr chunks of 10000000 rows"):
+        refine_store(big, tmp_path / "out.zarr", client=enough_for_8_rows)
 
 
 def test_stale_scheduler_info_does_not_hide_the_workers(tmp_path, client, monkeypatch):

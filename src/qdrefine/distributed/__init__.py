@@ -156,7 +156,8 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
         with sigterm_as_interrupt(), connect(client, address, in_process) as (cl, dashboard), \
                 quiet_shuffle_logs(), mesh_store.writing(url) as out:
             report.message(f"dask dashboard: {dashboard}" if dashboard else "dask cluster ready")
-            n_workers = check_workers(cl, src.path, url, src.chunk_size)
+            n_workers = check_workers(cl, src.path, url, src.chunk_size,
+                                      _stored_chunk_rows(src))
             work = f"{out}/{WORK}"
             current, times = src, []
             for level in range(1, levels + 1):
@@ -187,6 +188,16 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
     return RefineSummary(url, sch.name, levels, result.n_points, result.n_triangles,
                          result.n_edges, time.perf_counter() - start, tuple(times), n_workers,
                          dashboard)
+
+
+def _stored_chunk_rows(src: mesh_store.MeshStore) -> int:
+    """The rows of the source's largest Zarr chunk, which the tasks read and the output's
+    chunks copy (:attr:`MeshStore.chunk_size` is clipped to the array: a store of 384
+    triangles in chunks of 10**8 rows took 6.7 GB past the worker memory check)."""
+    import zarr
+
+    group = zarr.open_group(src.path, mode="r")
+    return max(int(group[name].chunks[0]) for name in mesh_store.ARRAYS if name in group)
 
 
 def _metadata(src: mesh_store.MeshStore, sch: Scheme, levels: int) -> dict[str, Any]:

@@ -33,6 +33,10 @@ BASE_MEMORY = 400 * 2**20
 #: Bytes a task holds per row of a chunk, at most (measured about 1.2 KB: the emission of a
 #: 7T level with coordinates; an edge partition of 4 chunks, about 1 KB; docs/scale-out.md).
 BYTES_PER_ROW = 2048
+#: Bytes a worker holds per row of the Zarr chunks the store is stored in (Zarr reads and
+#: writes whole chunks, whatever the array's length: a 384-triangle store in chunks of 10**7
+#: rows took 585 MiB more to refine on one worker, 3 * 10**7 rows 1444 MiB: 50-61 bytes).
+STORED_BYTES_PER_ROW = 64
 
 #: Default seconds a worker may stay paused (memory) before the run stops.
 PAUSE_TIMEOUT = 60.0
@@ -45,10 +49,12 @@ class ClusterError(OSError):
     memory, or a stage made no progress for too long. The message is one line."""
 
 
-def min_worker_memory(chunk_size: int) -> int:
-    """The memory limit a worker needs for chunks of ``chunk_size`` rows, in bytes
-    (``BASE_MEMORY + BYTES_PER_ROW * chunk_size``; docs/scale-out.md)."""
-    return BASE_MEMORY + BYTES_PER_ROW * int(chunk_size)
+def min_worker_memory(chunk_size: int, stored_rows: int = 0) -> int:
+    """The memory limit a worker needs for chunks of ``chunk_size`` rows stored in Zarr
+    chunks of ``stored_rows`` rows (the same rows, or more for an array shorter than its
+    chunk), in bytes: ``BASE_MEMORY + BYTES_PER_ROW * chunk_size + STORED_BYTES_PER_ROW *
+    stored_rows`` (docs/scale-out.md)."""
+    return BASE_MEMORY + BYTES_PER_ROW * int(chunk_size) + STORED_BYTES_PER_ROW * int(stored_rows)
 
 
 #: A Dask preload (the text of a script: nothing to import) run in every worker process
@@ -193,20 +199,23 @@ def quiet_shuffle_logs() -> Iterator[None]:
         logger.setLevel(level)
 
 
-def check_workers(client: Client, source: str, target: str, chunk_size: int) -> int:
+def check_workers(client: Client, source: str, target: str, chunk_size: int,
+                  stored_rows: int = 0) -> int:
     """Before any work: every worker sees the source and the target's parent, and has the
-    memory limit that chunks of ``chunk_size`` rows need. Returns the number of workers."""
+    memory limit that chunks of ``chunk_size`` rows stored in Zarr chunks of
+    ``stored_rows`` rows need (:func:`min_worker_memory`). Returns the number of workers."""
     # Asked of the scheduler itself: Client.scheduler_info() returns a cached copy that its
     # periodic refresh may overwrite with one that lists no workers (distributed 2026.7).
     workers = client.run_on_scheduler(_memory_limits)
     if not workers:
         raise ClusterError("the Dask cluster has no workers")
-    need = min_worker_memory(chunk_size)
+    need = min_worker_memory(chunk_size, stored_rows)
+    stored = f" (stored in Zarr chunks of {stored_rows} rows)" if stored_rows > chunk_size else ""
     for address, limit in workers.items():
         if limit and limit < need:
             raise MemoryError(
                 f"Dask worker {address} has a memory limit of {limit / 2**20:.0f} MiB; chunks "
-                f"of {chunk_size} rows need at least {need / 2**20:.0f} MiB per worker "
+                f"of {chunk_size} rows{stored} need at least {need / 2**20:.0f} MiB per worker "
                 "(docs/scale-out.md): give the workers more memory or make the store with a "
                 "smaller --chunk-size")
     problems = client.run(_visible, source, target)
