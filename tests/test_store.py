@@ -583,3 +583,36 @@ def test_damaged_stores_are_one_line_naming_the_store(tmp_path, damage, message)
         store.to_mesh(path)
     assert main(["convert", str(path), str(tmp_path / "out.msh")]) == 1
     assert not (tmp_path / "out.msh").exists()
+
+
+def test_a_long_store_name_gets_a_temporary_that_fits(tmp_path):
+    """The temporary ``.NAME~HOST~PID~TOKEN.tmp`` of a 245-character name went past the
+    255 bytes of a file name: the write was refused."""
+    from qdrefine.store.lifecycle import TMP, maker_of, temporary
+
+    name = "n" * 240 + ".zarr"
+    target = tmp_path / name
+    store.create(target, examples.square(2))
+    assert store.is_store(target)
+    leftover = temporary(store.location(target), TMP)
+    assert len(leftover.rsplit("/", 1)[-1].encode()) <= 255
+    assert maker_of(leftover.rsplit("/", 1)[-1], name) is not False  # clean finds it
+    assert maker_of(leftover.rsplit("/", 1)[-1], "n" * 239 + "x.zarr") is False
+
+
+def test_file_urls_are_decoded_as_rfc_8089_says(tmp_path):
+    """``file:///tmp/%C3%BC%20b.zarr`` made a folder named ``%C3%BC%20b.zarr``, and
+    ``file://localhost/x`` one under ``./localhost``."""
+    target = tmp_path / "ü b.zarr"
+    store.create(target.as_uri(), examples.square(2))
+    assert store.is_store(target)
+    assert store.location(f"file://localhost{tmp_path}/x.zarr") == str(tmp_path / "x.zarr")
+    with pytest.raises(ValueError, match="another host"):
+        store.location("file://elsewhere/x.zarr")
+
+
+def test_format_version_is_refused_for_a_store_output_on_dask(tmp_path, capsys):
+    store.create(tmp_path / "in.zarr", examples.square(2))
+    assert main(["refine", str(tmp_path / "in.zarr"), str(tmp_path / "out.zarr"), "--dask",
+                 "--format-version", "2.2"]) == 1
+    assert "--format-version applies to Gmsh .msh output only" in capsys.readouterr().err

@@ -131,6 +131,7 @@ def _on_dask(args: argparse.Namespace) -> int:
     from ..store.layout import group_of
 
     _common.check_compress(args.output, args.compress)
+    _common.check_format_version(args.output, args.format_version)
     if not is_store(args.input):
         if args.input.rstrip("/").lower().endswith(_common.STORE) or "://" in args.input:
             group_of(location(args.input))  # why it is not one: incomplete, missing, ...

@@ -5,6 +5,7 @@ and removing what killed runs left behind."""
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import re
 import shutil
@@ -56,10 +57,24 @@ def writing(path: PathLike) -> Iterator[str]:
 
 
 def temporary(url: str, suffix: str) -> str:
-    """``.NAME~HOST~PID~TOKEN<suffix>`` next to ``url``: who made it, for :func:`clean`."""
+    """``.NAME~HOST~PID~TOKEN<suffix>`` next to ``url``: who made it, for :func:`clean`
+    (a long NAME shortened, :func:`_stem`)."""
     parent, name = split(url)
-    host = socket.gethostname().replace("~", "-").replace("/", "-")
-    return join(parent, f".{name}~{host}~{os.getpid()}~{os.urandom(4).hex()}{suffix}")
+    host = socket.gethostname().replace("~", "-").replace("/", "-")[:64]
+    return join(parent, f".{_stem(name)}~{host}~{os.getpid()}~{os.urandom(4).hex()}{suffix}")
+
+
+#: Bytes of a target's name kept in its temporaries' names (file names hold 255 bytes).
+_STEM_BYTES = 120
+
+
+def _stem(name: str) -> str:
+    """``name``, or for a long one its start and a digest of the whole: the temporary's
+    name must fit where the target's does (a 245-character target was refused)."""
+    if len(name.encode()) <= _STEM_BYTES:
+        return name
+    start = name.encode()[:_STEM_BYTES - 9].decode(errors="ignore")
+    return f"{start}-{hashlib.sha1(name.encode()).hexdigest()[:8]}"
 
 
 def maker_of(entry: str, name: str) -> tuple[str, int] | None | bool:
@@ -69,7 +84,7 @@ def maker_of(entry: str, name: str) -> tuple[str, int] | None | bool:
     named them ``.NAME.XXXXXXXX.tmp`` / ``.work`` / ``.old`` with :func:`tempfile.mkdtemp`'s
     8 characters). Nothing else matches: a user's ``.NAME.backup.old`` is not ours, and
     neither is a temporary of ``NAME.zarr`` when ``name`` is ``NAME``."""
-    found = re.fullmatch(rf"\.{re.escape(name)}~([^~/]+)~(\d+)~[0-9a-f]{{8}}(\.tmp|\.old)",
+    found = re.fullmatch(rf"\.{re.escape(_stem(name))}~([^~/]+)~(\d+)~[0-9a-f]{{8}}(\.tmp|\.old)",
                          entry)
     if found:
         return found.group(1), int(found.group(2))

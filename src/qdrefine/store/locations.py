@@ -4,6 +4,7 @@ fsspec), made usable by every process."""
 from __future__ import annotations
 
 import os
+import urllib.parse
 
 __all__ = ["PathLike", "location", "is_local", "filesystem", "canonical", "join", "split"]
 
@@ -19,7 +20,11 @@ def location(path: PathLike) -> str:
     """
     text = os.fspath(path)
     if text.startswith("file://"):  # a local path: one spelling, so that it compares
-        text = text[len("file://"):]
+        parsed = urllib.parse.urlsplit(text)
+        if parsed.netloc not in ("", "localhost"):
+            raise ValueError(f"{text}: a file:// URL of another host ({parsed.netloc}) is not "
+                             "a local path; mount it and give the path")
+        text = urllib.parse.unquote(parsed.path)  # file:///tmp/%C3%BC%20b.zarr: "ü b.zarr"
     if "://" in text:
         return text.rstrip("/")
     return os.path.abspath(text)
