@@ -469,3 +469,35 @@ def test_msh40_written_by_gmsh_reads(tmp_path):
     np.testing.assert_array_equal(old.triangles, new.triangles)
     np.testing.assert_array_equal(old.cell_tags, new.cell_tags)
     assert old.physical_names == new.physical_names
+
+
+@pytest.mark.parametrize("binary", [0, 1])
+def test_a_partitioned_gmsh_file_keeps_its_physical_groups(tmp_path, binary):
+    """After ``gmsh.model.mesh.partition`` the elements belong to the partition entities of
+    ``$PartitionedEntities``, whose physical tags were not read: every triangle tag 0, the
+    tagged edges lost, without a word (a review)."""
+    with own_gmsh_model("partitioned"):
+        r = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
+        gmsh.model.occ.synchronize()
+        gmsh.model.addPhysicalGroup(2, [r], 11, "plate")
+        gmsh.model.addPhysicalGroup(1, [1], 21, "bottom")
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.3)
+        gmsh.model.mesh.generate(2)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.option.setNumber("Mesh.Binary", binary)
+        gmsh.write(str(tmp_path / "plain.msh"))
+        gmsh.model.mesh.partition(3)
+        gmsh.write(str(tmp_path / "part.msh"))
+        gmsh.model.mesh.unpartition()
+        gmsh.option.setNumber("Mesh.Binary", 0)
+    assert b"$PartitionedEntities" in (tmp_path / "part.msh").read_bytes()
+    plain, part = qdrefine.read(tmp_path / "plain.msh"), qdrefine.read(tmp_path / "part.msh")
+
+    def tagged(mesh, rows, tags):  # (corners in coordinate order, tag), in order
+        corners = [tuple(sorted(map(tuple, mesh.points[r].tolist()))) for r in rows]
+        return sorted(zip(corners, tags.tolist(), strict=True))
+
+    assert tagged(part, part.triangles, part.cell_tags) == \
+        tagged(plain, plain.triangles, plain.cell_tags)
+    assert tagged(part, part.edges, part.edge_tags) == tagged(plain, plain.edges, plain.edge_tags)
+    assert part.physical_names == plain.physical_names

@@ -270,6 +270,58 @@ def _entities(f: _File, c: _Content, start: int) -> int:
     return end
 
 
+def _partitioned_entities(f: _File, c: _Content, start: int) -> int:
+    """MSH 4.1 ``$PartitionedEntities`` (a mesh saved after ``gmsh.model.mesh.partition``):
+    the elements belong to these entities, whose physical tags are given here (without
+    them every tag read as 0 and the tagged edges were lost)."""
+    if c.version != "4.1":
+        return f.end_of("PartitionedEntities", start)
+    if f.binary:
+        head, pos = f.take(start, np.uint64, 2, "$PartitionedEntities")
+        _, pos = f.take(pos, np.int32, 2 * int(head[1]), "$PartitionedEntities")  # ghosts
+        counts, pos = f.take(pos, np.uint64, 4, "$PartitionedEntities")
+        for dim, count in enumerate(counts.tolist()):
+            for _ in range(int(count)):
+                ids, pos = f.take(pos, np.int32, 3, "$PartitionedEntities")
+                n, pos = f.take(pos, np.uint64, 1, "$PartitionedEntities")
+                _, pos = f.take(pos, np.int32, int(n[0]), "$PartitionedEntities")
+                _, pos = f.take(pos, np.float64, 3 if dim == 0 else 6, "$PartitionedEntities")
+                n, pos = f.take(pos, np.uint64, 1, "$PartitionedEntities")
+                phys, pos = f.take(pos, np.int32, int(n[0]), "$PartitionedEntities")
+                c.entities[(dim, int(ids[0]))] = tuple(int(p) for p in phys) or (0,)
+                if dim > 0:
+                    n, pos = f.take(pos, np.uint64, 1, "$PartitionedEntities")
+                    _, pos = f.take(pos, np.int32, int(n[0]), "$PartitionedEntities")
+        return pos
+    end = f.end_of("PartitionedEntities", start)
+    v = f.numbers(start, end, np.float64, "a number")
+    try:
+        i = 2 + 2 * _count(v[1])  # partitions, ghost entities and their pairs
+        counts = [_count(x) for x in v[i:i + 4]]
+        if len(counts) != 4:
+            raise IndexError
+        i += 4
+        for dim, count in enumerate(counts):
+            for _ in range(count):
+                tag = _int(v[i])
+                i += 4 + _count(v[i + 3])  # parent dimension and tag, partitions
+                i += 3 if dim == 0 else 6  # a point, or a box
+                n_phys = _count(v[i])
+                if i + 1 + n_phys > len(v):
+                    raise IndexError
+                c.entities[(dim, tag)] = tuple(_int(p) for p in v[i + 1:i + 1 + n_phys]) or (0,)
+                i += 1 + n_phys
+                if dim > 0:
+                    i += 1 + _count(v[i])
+    except (IndexError, ValueError, OverflowError):
+        raise f.error(start, "$PartitionedEntities ends early, or a count in it is not a "
+                             "count") from None
+    if i != len(v):
+        raise f.error(start, f"$PartitionedEntities holds {len(v) - i} numbers more than its "
+                             "counts announce")
+    return end
+
+
 def _nodes(f: _File, c: _Content, start: int) -> int:
     if c.version == "2.2":
         return _nodes22(f, c, start)
@@ -629,6 +681,7 @@ def _qdrefine_data(f: _File, c: _Content, start: int) -> int:
 
 _HANDLERS = {
     "MeshFormat": _mesh_format, "PhysicalNames": _physical_names, "Entities": _entities,
+    "PartitionedEntities": _partitioned_entities,
     "Nodes": _nodes, "Elements": _elements, "NodeData": _data_section("NodeData"),
     "ElementData": _data_section("ElementData"), "QdrefineData": _qdrefine_data,
 }
