@@ -377,8 +377,6 @@ def _first_bad(start: int, bad: NDArray) -> int:
     return start + int(np.flatnonzero(bad.reshape(len(bad), -1).any(axis=1))[0])
 
 
-
-
 def _unsigned_beyond_int64(path: str, name: str, start: int, block: NDArray) -> None:
     """Tags stored as unsigned integers beyond int64 (they would wrap to negative tags)."""
     if block.dtype.kind == "u" and len(block) and block.max() > np.iinfo(np.int64).max:

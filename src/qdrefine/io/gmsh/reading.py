@@ -1,10 +1,10 @@
 """Reading Gmsh MSH 2.0-2.2 and 4.1, text and binary (4.0 goes to meshio).
 
 One concern, so one module although it is over 400 lines: each section of the format
-(``$MeshFormat``, ``$PhysicalNames``, ``$Entities``, ``$Nodes``, ``$Elements``,
-``$NodeData``/``$ElementData``, ``$QdrefineData``) is parsed with whole-array NumPy
-operations by its own handler, and :func:`read` assembles the mesh; every error names the
-line (text) or byte (binary).
+(``$MeshFormat``, ``$PhysicalNames``, ``$Entities``, ``$PartitionedEntities``, ``$Nodes``,
+``$Elements``, ``$NodeData``/``$ElementData``, ``$QdrefineData``) is parsed with
+whole-array NumPy operations by its own handler, and :func:`read` assembles the mesh;
+every error names the line (text) or byte (binary).
 """
 
 from __future__ import annotations
