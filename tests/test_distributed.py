@@ -685,3 +685,22 @@ def test_new_points_below_the_coordinate_range_are_refused_as_in_memory(tmp_path
     with pytest.raises(ValueError, match="below the supported range"):
         refine_store(tmp_path / "low.zarr", tmp_path / "out.zarr", client=client)
     assert not (tmp_path / "out.zarr").exists()
+
+
+@pytest.mark.parametrize("levels", [0, 1])
+def test_unsigned_tags_within_int64_are_refined_and_copied(tmp_path, client, levels):
+    """``levels=0`` copied uint64 tags into an array whose fill value is int64's smallest:
+    an OverflowError traceback (refinement wrote them as int64 already)."""
+    mesh = examples.plate_with_hole()
+    path = tmp_path / "u.zarr"
+    store.create(path, mesh, chunk_size=100)
+    group = zarr.open_group(path, mode="r+", use_consolidated=False)
+    tags = group["cell_tags"][...]
+    del group["cell_tags"]
+    group.create_array("cell_tags", shape=tags.shape, dtype=np.uint64, chunks=(100,),
+                       fill_value=0)[...] = tags.astype(np.uint64)
+    zarr.consolidate_metadata(path)
+    refine_store(path, tmp_path / "out.zarr", levels=levels, client=client)
+    out = store.to_mesh(tmp_path / "out.zarr")
+    np.testing.assert_array_equal(out.cell_tags, refine(mesh, levels=levels).cell_tags
+                                  if levels else mesh.cell_tags)

@@ -600,15 +600,57 @@ def test_a_long_store_name_gets_a_temporary_that_fits(tmp_path):
     assert maker_of(leftover.rsplit("/", 1)[-1], "n" * 239 + "x.zarr") is False
 
 
-def test_file_urls_are_decoded_as_rfc_8089_says(tmp_path):
-    """``file:///tmp/%C3%BC%20b.zarr`` made a folder named ``%C3%BC%20b.zarr``, and
-    ``file://localhost/x`` one under ``./localhost``."""
-    target = tmp_path / "ü b.zarr"
-    store.create(target.as_uri(), examples.square(2))
-    assert store.is_store(target)
-    assert store.location(f"file://localhost{tmp_path}/x.zarr") == str(tmp_path / "x.zarr")
-    with pytest.raises(ValueError, match="another host"):
-        store.location("file://elsewhere/x.zarr")
+def test_file_urls_are_taken_as_fsspec_takes_them(tmp_path):
+    """No part of the path is dropped or decoded: ``#`` and ``?`` are characters of the
+    name (a parser of URLs took them for a fragment and a query and wrote to ``run``), and
+    ``%C3%BC`` stays as written, as fsspec and Zarr read it."""
+    for name in ("run#1.zarr", "a?b.zarr", "x%41.zarr"):
+        assert store.location(f"file://{tmp_path}/{name}") == str(tmp_path / name)
+    store.create(f"file://{tmp_path}/run#1.zarr", examples.square(2))
+    assert store.is_store(tmp_path / "run#1.zarr") and not (tmp_path / "run").exists()
+
+
+def test_chained_urls_are_not_names_with_double_colons(tmp_path):
+    """``zip://x.zarr::a.zip`` and ``simplecache::s3://...`` are fsspec chains; only after
+    a storage protocol is ``::`` part of a name (and refused)."""
+    import zipfile
+
+    from qdrefine.store.locations import canonical, filesystem
+
+    store.create(tmp_path / "x.zarr", examples.square(2))
+    with zipfile.ZipFile(tmp_path / "a.zip", "w") as z:
+        for f in (tmp_path / "x.zarr").rglob("*"):
+            z.write(f, f.relative_to(tmp_path))
+    for url in (f"zip://x.zarr::{tmp_path}/a.zip", f"zip://x.zarr::file://{tmp_path}/a.zip"):
+        assert store.open(url).n_triangles == 8
+        assert canonical(url) == url  # a chain is compared as written
+    with pytest.raises(ValueError, match="cannot contain '::'"):
+        filesystem("memory://b/a::b.zarr")
+    with pytest.raises(ValueError, match="cannot contain '::'"):
+        filesystem(f"{tmp_path}/a::b.zarr")
+
+
+def test_clean_finds_the_full_name_temporaries_of_older_versions():
+    """Versions before the shortened names wrote ``.{the whole name}~HOST~PID~TOKEN.tmp``
+    for names of 121 bytes or more too."""
+    from qdrefine.store.lifecycle import maker_of
+
+    name = "m" * 150 + ".zarr"
+    assert maker_of(f".{name}~vm~5395~0123abcd.tmp", name) == ("vm", 5395)
+    assert maker_of(f".{name}~vm~5395~0123abcd.old", name) == ("vm", 5395)
+
+
+def test_metadata_of_any_kind_is_kept_through_refinement(tmp_path):
+    """``create`` takes any JSON mapping as metadata; a ``refinements`` that is not a list
+    made the store unopenable, and refinement turned a string into its characters."""
+    from qdrefine.distributed import _metadata
+    from qdrefine.schemes import get_scheme
+
+    source = store.create(tmp_path / "in.zarr", examples.square(2),
+                          metadata={"refinements": "7T twice by hand"})
+    assert store.open(source.path).metadata == {"refinements": "7T twice by hand"}
+    assert _metadata(store.open(source.path), get_scheme("7t-qd"), 1)["refinements"] == \
+        ["7T twice by hand", {"scheme": "7t-qd", "levels": 1}]
 
 
 def test_format_version_is_refused_for_a_store_output_on_dask(tmp_path, capsys):

@@ -202,6 +202,7 @@ def _stored_chunk_rows(src: mesh_store.MeshStore) -> int:
 
 def _metadata(src: mesh_store.MeshStore, sch: Scheme, levels: int) -> dict[str, Any]:
     meta = dict(src.metadata)
-    history = list(meta.get("refinements", []))
+    history = meta.get("refinements", [])  # a user's own value of another kind is kept too
+    history = list(history) if isinstance(history, list) else [history]
     meta["refinements"] = history + [{"scheme": sch.name, "levels": levels}]
     return meta

@@ -399,23 +399,26 @@ def copy_store(client: Client, src: mesh_store.MeshStore, out: str, metadata: di
 
     group = zarr.open_group(src.path, mode="r")
     names = [n for n in mesh_store.ARRAYS if n in group]
-    specs = {n: (group[n].shape, group[n].dtype) for n in names}
+    # tags as int64, as a refined level writes them (their fill value is int64's smallest)
+    dtypes = {n: np.dtype(np.int64) if n.endswith("tags") else group[n].dtype for n in names}
+    specs = {n: (group[n].shape, dtypes[n]) for n in names}
     target = mesh_store.new_group(out, specs, {n: int(group[n].chunks[0]) for n in names},
                                   metadata)
     # checked as they are copied: the copy of a damaged store must not be marked complete
     sources = {n: da.from_zarr(group[n]).map_blocks(_checked_block, src.path, src.n_points, n,
-                                                   dtype=group[n].dtype)
+                                                   dtypes[n], dtype=dtypes[n])
                for n in names}
     sources |= mesh_store.node_coordinates(sources["points"])
     cluster.compute(client, [da.store(list(sources.values()), [target[n] for n in sources],
                                       lock=False, compute=False)], **timeouts)
 
 
-def _checked_block(block: NDArray, path: str, n_points: int, name: str,
+def _checked_block(block: NDArray, path: str, n_points: int, name: str, dtype: np.dtype,
                    block_info: dict | None = None) -> NDArray:
-    """A block of a source array, checked (:func:`qdrefine.store.layout.written`)."""
+    """A block of a source array, checked (:func:`qdrefine.store.layout.written`), as
+    ``dtype``."""
     start = block_info[0]["array-location"][0][0] if block_info else 0
-    return mesh_store.written(path, n_points, name, start, block)
+    return mesh_store.written(path, n_points, name, start, block).astype(dtype, copy=False)
 
 
 def _meta(*names: str, ints: int = 0) -> pd.DataFrame:

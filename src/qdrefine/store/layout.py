@@ -280,10 +280,9 @@ def open(path: PathLike) -> MeshStore:
     check_arrays(url, arrays)
     metadata = dict(group.attrs["qdrefine"].get("metadata") or {}) \
         if isinstance(group.attrs["qdrefine"].get("metadata") or {}, dict) else None
-    refinements = None if metadata is None else metadata.get("refinements", [])
-    if not isinstance(refinements, list):
-        raise ValueError(f"{url}: the 'qdrefine' attribute's metadata is not a mapping with a "
-                         "list of refinements: the store is damaged")
+    if metadata is None:
+        raise ValueError(f"{url}: the 'qdrefine' attribute's metadata is not a mapping: the "
+                         "store is damaged")
     return MeshStore(url, metadata=metadata, **arrays)
 
 

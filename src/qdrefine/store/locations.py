@@ -4,7 +4,6 @@ fsspec), made usable by every process."""
 from __future__ import annotations
 
 import os
-import urllib.parse
 
 __all__ = ["PathLike", "location", "is_local", "filesystem", "canonical", "join", "split"]
 
@@ -20,11 +19,8 @@ def location(path: PathLike) -> str:
     """
     text = os.fspath(path)
     if text.startswith("file://"):  # a local path: one spelling, so that it compares
-        parsed = urllib.parse.urlsplit(text)
-        if parsed.netloc not in ("", "localhost"):
-            raise ValueError(f"{text}: a file:// URL of another host ({parsed.netloc}) is not "
-                             "a local path; mount it and give the path")
-        text = urllib.parse.unquote(parsed.path)  # file:///tmp/%C3%BC%20b.zarr: "ü b.zarr"
+        # as fsspec and Zarr take it: no percent-decoding (the folder is named as written)
+        text = text[len("file://"):]
     if "://" in text:
         return text.rstrip("/")
     return os.path.abspath(text)
@@ -35,6 +31,12 @@ def is_local(url: str) -> bool:
     return "://" not in url or url.startswith("file://")
 
 
+#: Protocols of storage itself, which never start a chain (``zip://x.zarr::a.zip`` and
+#: ``simplecache::s3://...`` do): after them ``::`` can only be part of a name.
+_STORAGE = frozenset({"memory", "file", "local", "s3", "s3a", "gs", "gcs", "az", "abfs",
+                      "abfss", "adl", "http", "https", "hdfs", "sftp", "ssh", "ftp", "webdav"})
+
+
 def filesystem(url: str):
     """``(fsspec filesystem, path within it)`` of ``url``, with no stale listings cached
     (object stores' filesystems cache directory listings that other writers change)."""
@@ -43,7 +45,8 @@ def filesystem(url: str):
     if is_local(url) and "::" in url:  # fsspec and Zarr would open another path
         raise ValueError(f"{url}: a local store path cannot contain '::' (fsspec reads it "
                          "as URL chaining); rename it")
-    if any("://" not in part for part in url.split("::")[1:]):  # memory://b/a::b.zarr
+    outer = url.split("::")[0].split("://")[0]
+    if "::" in url and outer in _STORAGE:  # memory://b/a::b.zarr: not a chain's start
         raise ValueError(f"{url}: a store name cannot contain '::' (fsspec reads it as URL "
                          "chaining and would write elsewhere); rename it")
     fs, root = fsspec.core.url_to_fs(url)
@@ -54,7 +57,10 @@ def filesystem(url: str):
 def canonical(url: str) -> str:
     """One spelling of the place ``url`` (from :func:`location`) names, to compare two:
     a local path with its links resolved, a URL as its filesystem's protocol and path
-    (``memory:///b/x.zarr`` and ``memory://b/x.zarr`` are one place)."""
+    (``memory:///b/x.zarr`` and ``memory://b/x.zarr`` are one place); a chained URL
+    (``simplecache::s3://...``, ``zip://...::...``) as written."""
+    if "::" in url:
+        return url
     if is_local(url):
         return os.path.realpath(url[len("file://"):] if url.startswith("file://") else url)
     fs, root = filesystem(url)
