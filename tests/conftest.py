@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from cli_runner import without_compile_note
 from qdrefine.cli import main
 
 
@@ -29,6 +30,7 @@ def run(capsys):
             except SystemExit as exc:
                 code = exc.code if isinstance(exc.code, int) else 1
         out, err = capsys.readouterr()
-        return subprocess.CompletedProcess(["qdrefine", *argv], code, out, err)
+        return subprocess.CompletedProcess(["qdrefine", *argv], code, out,
+                                           without_compile_note(err))
 
     return run_

@@ -19,7 +19,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "cache_directory", "compiled_before",
+__all__ = ["CHUNK", "AHEAD", "PARALLEL_MIN", "cache_directory", "compile_note",
            "one_thread", "threads_for",
            "prefetch", "prefetch_write", "unsigned"]
 
@@ -66,22 +66,29 @@ def cache_directory() -> str | None:
 cache_directory()
 
 
-def compiled_before(module: str = "kernels") -> bool:
-    """Whether numba's cache holds compiled code of ``qdrefine.<module>`` (a dotted name
-    such as ``"adaptive.plan"``; index files ``<name>.*.nbi``) where this process would
-    look for it: ``NUMBA_CACHE_DIR`` when set, else the ``__pycache__`` next to the module
-    and the user's numba cache. ``False`` on a first run, when the kernels will be compiled
-    (tens of seconds)."""
-    *package, name = module.split(".")
-    pattern = f"{name}.*.nbi"
-    if numba.config.CACHE_DIR:
-        places = [Path(numba.config.CACHE_DIR)]
-    else:
-        places = [Path(__file__).parent.joinpath(*package, "__pycache__"), _user_cache()]
-    for place in places:
-        if place.is_dir() and next(place.rglob(pattern), None) is not None:
-            return True
-    return False
+@contextmanager
+def compile_note(message: str) -> Iterator[None]:
+    """Print ``message`` on stderr, once, when a kernel of qdrefine is compiled while the
+    block runs (numba's ``numba:compile`` event, which fires on a cache miss only): a first
+    run says so before it compiles for tens of seconds, and a run with nothing to compile
+    says nothing, whatever the command and its options."""
+    from numba.core import event
+
+    class Note(event.Listener):
+        said = False
+
+        def on_start(self, ev: event.Event) -> None:
+            function = getattr(ev.data.get("dispatcher"), "py_func", None)
+            if not self.said and getattr(function, "__module__", "").startswith("qdrefine"):
+                self.said = True
+                print(message, file=sys.stderr, flush=True)
+
+        def on_end(self, ev: event.Event) -> None:
+            pass
+
+    with event.install_listener("numba:compile", Note()):
+        yield
+
 
 CHUNK = 4096  # triangles per parallel work item
 AHEAD = 8  # software prefetch distance (triangles or edges) for gathers of random rows

@@ -1,9 +1,8 @@
 """The ``qdrefine`` command line: one module per subcommand.
 
 Each subcommand module defines ``HELP`` (one line), ``add_args(parser)`` and
-``run(args) -> int``, and may name the modules whose cached numba kernels it runs, as
-``COMPILES`` or, where they depend on the options, ``compiled(args)`` (default: those of
-reading a mesh file, :data:`._common.READ`), so that a first run says it compiles them.
+``run(args) -> int``. A run that compiles a kernel (a first run, or a new numba) says so
+on stderr when the compiling starts (:func:`qdrefine.jit.compile_note`).
 
 Errors that users can cause (bad arguments, bad files, bad meshes, a mesh too large for
 the memory) are raised as ``ValueError``, ``OSError`` or
@@ -19,7 +18,7 @@ import os
 import sys
 
 from ..interrupts import TERMINATED, sigterm_as_interrupt
-from ..jit import compiled_before
+from ..jit import compile_note
 from . import _common
 
 __all__ = ["main", "COMMANDS"]
@@ -48,11 +47,13 @@ def _parser() -> argparse.ArgumentParser:
         cmd = sub.add_parser(name, help=module.HELP, description=module.HELP)
         cmd.set_defaults(parser=cmd)
         module.add_args(cmd)
-        compiles = getattr(module, "COMPILES", _common.READ)
-        cmd.set_defaults(handler=module.run,
-                         compiled=getattr(module, "compiled",
-                                          lambda args, compiles=compiles: compiles))
+        cmd.set_defaults(handler=module.run)
     return parser
+
+
+#: Said once when a run compiles a kernel (:func:`qdrefine.jit.compile_note`).
+COMPILING = ("qdrefine: note: compiling the numerical kernels for this machine (once, about a "
+             "minute; later runs use the cache)")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -66,11 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "handler", None) is None:
         parser.print_help()
         return 2
-    if not all(compiled_before(module) for module in args.compiled(args)):
-        print("qdrefine: note: compiling the numerical kernels for this machine (once, about "
-              "a minute; later runs use the cache)", file=sys.stderr, flush=True)
     try:
-        with sigterm_as_interrupt():  # a kill cleans up as Ctrl-C does: no temporary files
+        with sigterm_as_interrupt(), compile_note(COMPILING):  # a kill cleans up as Ctrl-C
             return int(args.handler(args))
     except BrokenPipeError:  # e.g. `qdrefine info x.msh | head`: not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -20,16 +20,6 @@ from ..store.locations import location
 if TYPE_CHECKING:
     from ..adaptive import HistoryMismatch
 
-#: The modules whose cached kernels a command runs (:func:`qdrefine.jit.compiled_before`), so
-#: that a first run says it compiles them: reading and checking a mesh file (every command
-#: that reads one), uniform refinement, and local refinement's own (about a minute more).
-#: A command module names its own in ``COMPILES`` or ``compiled(args)``; ``READ`` if not.
-READ = ("check.points", "check.edges", "numbering", "predicates", "sweep")
-KERNELS = (*READ, "kernels", "io._text")
-LOCAL_KERNELS = (*KERNELS, "jit", *(f"adaptive.{name}" for name in (
-    "api", "coarsen", "edgekeys", "families", "history", "labels", "longest_edge", "output",
-    "patterns", "plan", "reach", "red_families", "window")))
-
 #: Extension of a chunked Zarr mesh store (:mod:`qdrefine.store`).
 STORE = ".zarr"
 

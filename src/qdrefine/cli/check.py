@@ -13,7 +13,6 @@ from ..uniform import refused
 from . import _common
 
 HELP = "check a mesh file: list every problem (exit 0 when usable, 1 when not)"
-COMPILES = (*_common.READ, "check.cells", "kernels")
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:

@@ -7,7 +7,6 @@ import argparse
 from . import _common
 
 HELP = "remove the temporary stores that killed or interrupted runs left next to a store"
-COMPILES: tuple[str, ...] = ()
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:

@@ -38,11 +38,6 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                             "boxes are re-evaluated on each cycle's mesh")
 
 
-def compiled(args: argparse.Namespace) -> tuple[str, ...]:  # noqa: ARG001
-    """The modules whose kernels coarsening compiles on a first run."""
-    return _common.LOCAL_KERNELS
-
-
 def run(args: argparse.Namespace) -> int:
     with _common.session():
         _common.check_mesh_output(args)

@@ -11,7 +11,6 @@ from ..schemes import scheme_names
 from . import _common
 
 HELP = "refine with several schemes level by level: min angle, mean, similarity classes"
-COMPILES = (*_common.READ, "kernels", "quality", "jit")
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:

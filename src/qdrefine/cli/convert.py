@@ -8,7 +8,6 @@ from ..io import read, write
 from . import _common
 
 HELP = "convert a mesh between file formats, or to and from a chunked Zarr store (.zarr)"
-COMPILES = (*_common.READ, "io._text")  # text outputs format their integers compiled
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:

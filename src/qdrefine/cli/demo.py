@@ -40,11 +40,6 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                         help="cycles of the --afem loop (default 10; with --afem only)")
 
 
-def compiled(args: argparse.Namespace) -> tuple[str, ...]:
-    """The modules whose kernels the demo compiles on a first run."""
-    return _common.LOCAL_KERNELS if args.afem else (*_common.KERNELS, "quality", "jit")
-
-
 def run(args: argparse.Namespace) -> int:
     with _common.session():
         return _run(args)

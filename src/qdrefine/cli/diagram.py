@@ -9,7 +9,6 @@ import math
 from . import _common
 
 HELP = "areas of the regions of the paper's mapping diagram (exact arcs + quadrature)"
-COMPILES: tuple[str, ...] = ()
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:

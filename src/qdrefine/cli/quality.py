@@ -10,7 +10,6 @@ from ..quality import SIMILARITY_TOLERANCE
 from . import _common
 
 HELP = "quality figures: angles, radius and aspect ratios, shape classes, histogram"
-COMPILES = (*_common.READ, "quality", "jit")
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:

@@ -77,14 +77,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def compiled(args: argparse.Namespace) -> tuple[str, ...]:
-    """The modules whose kernels these options compile on a first run (local refinement
-    has its own, about a minute more)."""
-    if args.dask is not None:  # the chunks' own kernels, in this process and the workers
-        return (*_common.KERNELS, "distributed.chunks")
-    return _common.LOCAL_KERNELS if marks.given(args) else _common.KERNELS
-
-
 def _check_options(args: argparse.Namespace) -> int:
     """Option combinations argparse cannot express; returns the number of refinements."""
     marked = marks.given(args)
