@@ -238,13 +238,7 @@ def _entities(f: _File, c: _Content, start: int) -> int:
         for dim, count in enumerate(head.tolist()):
             for _ in range(int(count)):
                 tag, pos = f.take(pos, np.int32, 1, "$Entities")
-                _, pos = f.take(pos, np.float64, 3 if dim == 0 else 6, "$Entities")
-                n_phys, pos = f.take(pos, np.uint64, 1, "$Entities")
-                phys, pos = f.take(pos, np.int32, int(n_phys[0]), "$Entities")
-                c.entities[(dim, int(tag[0]))] = tuple(int(p) for p in phys) or (0,)
-                if dim > 0:
-                    n_b, pos = f.take(pos, np.uint64, 1, "$Entities")
-                    _, pos = f.take(pos, np.int32, int(n_b[0]), "$Entities")
+                pos = _groups_binary(f, c, pos, dim, int(tag[0]), "$Entities")
         return pos
     end = f.end_of("Entities", start)
     v = f.numbers(start, end, np.float64, "a number")
@@ -252,22 +246,39 @@ def _entities(f: _File, c: _Content, start: int) -> int:
     try:
         for dim in range(4):
             for _ in range(_count(v[dim])):
-                tag = _int(v[i])
-                i += 4 if dim == 0 and c.version == "4.1" else 7  # 4.0: a box for points
-                n_phys = _count(v[i])
-                if i + 1 + n_phys > len(v):
-                    raise IndexError
-                phys = v[i + 1:i + 1 + n_phys]
-                i += 1 + n_phys
-                c.entities[(dim, tag)] = tuple(_int(p) for p in phys) or (0,)
-                if dim > 0:
-                    i += 1 + _count(v[i])
+                box = 3 if dim == 0 and c.version == "4.1" else 6  # 4.0: a box for points
+                i = _groups_text(v, i + 1, c, dim, _int(v[i]), box)
     except (IndexError, ValueError, OverflowError):
         raise f.error(start, "$Entities ends early, or a count in it is not a count") from None
     if i != len(v):
         raise f.error(start, f"$Entities holds {len(v) - i} numbers more than its counts "
                              "announce")
     return end
+
+
+def _groups_text(v: NDArray, i: int, c: _Content, dim: int, tag: int, box: int) -> int:
+    """From ``v[i]`` (text numbers): an entity's point or box (``box`` numbers), its
+    physical groups (kept for entity ``(dim, tag)``) and bounding entities; the place
+    after them."""
+    i += box
+    n_phys = _count(v[i])
+    if i + 1 + n_phys > len(v):
+        raise IndexError
+    c.entities[(dim, tag)] = tuple(_int(p) for p in v[i + 1:i + 1 + n_phys]) or (0,)
+    i += 1 + n_phys
+    return i + 1 + _count(v[i]) if dim > 0 else i
+
+
+def _groups_binary(f: _File, c: _Content, pos: int, dim: int, tag: int, what: str) -> int:
+    """:func:`_groups_text` of a binary section, from byte ``pos``."""
+    _, pos = f.take(pos, np.float64, 3 if dim == 0 else 6, what)
+    n, pos = f.take(pos, np.uint64, 1, what)
+    phys, pos = f.take(pos, np.int32, int(n[0]), what)
+    c.entities[(dim, tag)] = tuple(int(p) for p in phys) or (0,)
+    if dim > 0:
+        n, pos = f.take(pos, np.uint64, 1, what)
+        _, pos = f.take(pos, np.int32, int(n[0]), what)
+    return pos
 
 
 def _partitioned_entities(f: _File, c: _Content, start: int) -> int:
@@ -282,16 +293,10 @@ def _partitioned_entities(f: _File, c: _Content, start: int) -> int:
         counts, pos = f.take(pos, np.uint64, 4, "$PartitionedEntities")
         for dim, count in enumerate(counts.tolist()):
             for _ in range(int(count)):
-                ids, pos = f.take(pos, np.int32, 3, "$PartitionedEntities")
+                ids, pos = f.take(pos, np.int32, 3, "$PartitionedEntities")  # tag, parent
                 n, pos = f.take(pos, np.uint64, 1, "$PartitionedEntities")
-                _, pos = f.take(pos, np.int32, int(n[0]), "$PartitionedEntities")
-                _, pos = f.take(pos, np.float64, 3 if dim == 0 else 6, "$PartitionedEntities")
-                n, pos = f.take(pos, np.uint64, 1, "$PartitionedEntities")
-                phys, pos = f.take(pos, np.int32, int(n[0]), "$PartitionedEntities")
-                c.entities[(dim, int(ids[0]))] = tuple(int(p) for p in phys) or (0,)
-                if dim > 0:
-                    n, pos = f.take(pos, np.uint64, 1, "$PartitionedEntities")
-                    _, pos = f.take(pos, np.int32, int(n[0]), "$PartitionedEntities")
+                _, pos = f.take(pos, np.int32, int(n[0]), "$PartitionedEntities")  # partitions
+                pos = _groups_binary(f, c, pos, dim, int(ids[0]), "$PartitionedEntities")
         return pos
     end = f.end_of("PartitionedEntities", start)
     v = f.numbers(start, end, np.float64, "a number")
@@ -303,16 +308,8 @@ def _partitioned_entities(f: _File, c: _Content, start: int) -> int:
         i += 4
         for dim, count in enumerate(counts):
             for _ in range(count):
-                tag = _int(v[i])
-                i += 4 + _count(v[i + 3])  # parent dimension and tag, partitions
-                i += 3 if dim == 0 else 6  # a point, or a box
-                n_phys = _count(v[i])
-                if i + 1 + n_phys > len(v):
-                    raise IndexError
-                c.entities[(dim, tag)] = tuple(_int(p) for p in v[i + 1:i + 1 + n_phys]) or (0,)
-                i += 1 + n_phys
-                if dim > 0:
-                    i += 1 + _count(v[i])
+                tag, at = _int(v[i]), i + 4 + _count(v[i + 3])  # parent, partitions
+                i = _groups_text(v, at, c, dim, tag, 3 if dim == 0 else 6)
     except (IndexError, ValueError, OverflowError):
         raise f.error(start, "$PartitionedEntities ends early, or a count in it is not a "
                              "count") from None
