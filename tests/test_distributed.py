@@ -671,7 +671,7 @@ def test_unsigned_tags_beyond_int64_are_refused_as_in_memory(tmp_path, client):
     del group["cell_tags"]
     group.create_array("cell_tags", shape=shape, dtype=np.uint64, chunks=(100,),
                        fill_value=0)[...] = np.full(shape, 2**64 - 1, dtype=np.uint64)
-    zarr.consolidate_metadata(path)
+    _consolidate(path)
     with pytest.raises(ValueError, match=r"cell_tags row \d+ holds 18446744073709551615"):
         refine_store(path, tmp_path / "out.zarr", client=client)
     assert not (tmp_path / "out.zarr").exists()
@@ -699,8 +699,18 @@ def test_unsigned_tags_within_int64_are_refined_and_copied(tmp_path, client, lev
     del group["cell_tags"]
     group.create_array("cell_tags", shape=tags.shape, dtype=np.uint64, chunks=(100,),
                        fill_value=0)[...] = tags.astype(np.uint64)
-    zarr.consolidate_metadata(path)
+    _consolidate(path)
     refine_store(path, tmp_path / "out.zarr", levels=levels, client=client)
     out = store.to_mesh(tmp_path / "out.zarr")
     np.testing.assert_array_equal(out.cell_tags, refine(mesh, levels=levels).cell_tags
                                   if levels else mesh.cell_tags)
+
+
+def _consolidate(path: Path) -> None:
+    """Zarr's consolidated listing again after an array was replaced (Zarr warns that the
+    listing is not part of its format 3 specification; qdrefine's stores have it)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        zarr.consolidate_metadata(path)

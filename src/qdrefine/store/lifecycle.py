@@ -147,7 +147,7 @@ def root_of(url: str) -> str:
 def remove(url: str) -> None:
     """Remove whatever is at ``url`` (a store, a temporary), if anything; only that (fsspec's
     ``rm`` reads ``[``, ``?`` and ``*`` in a name as a pattern: ``out[1].zarr`` removed
-    ``out1.zarr``, so the files are listed and removed one by one)."""
+    ``out1.zarr``, so the objects are listed and removed by name, :func:`_remove_tree`)."""
     fs, root = filesystem(url)
     with contextlib.suppress(FileNotFoundError, OSError):
         if is_local(url):
