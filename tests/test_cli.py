@@ -349,3 +349,59 @@ def test_info_says_how_many_triangles_reading_flipped(tmp_path, capsys):
            "on reading)" in capsys.readouterr().out
     assert main(["info", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["flipped_on_reading"] == 2
+
+
+TWO_GROUPS = """$MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+4
+1 0 0 0
+2 1 0 0
+3 1 1 0
+4 0 1 0
+$EndNodes
+$Elements
+4
+1 2 2 20 1 1 2 3
+2 2 2 20 1 1 3 4
+3 2 2 30 1 1 2 3
+4 2 2 30 1 1 3 4
+$EndElements
+"""
+
+
+def test_check_reports_what_the_reader_warns(tmp_path, run):
+    """The reader's warnings (a surface in two physical groups) were printed on stderr
+    while the report said "0 warnings"."""
+    (tmp_path / "two.msh").write_text(TWO_GROUPS)
+    result = run("check", "--json", tmp_path / "two.msh")
+    report = json.loads(result.stdout)
+    assert result.returncode == 0 and report["warnings"] == 1, result
+    assert report["problems"][0]["kind"] == "file"
+    assert "given again with another physical tag" in report["problems"][0]["message"]
+    assert result.stderr == ""
+
+
+def test_review_of_the_command_line(tmp_path, run, monkeypatch):
+    """A memory figure that stopped growing at 20 levels; a mark file's '3_0' read as 30 and
+    Arabic-Indic digits as ids; Triangle files asked as T.Node written as T.node."""
+    mesh = tmp_path / "p.msh"
+    qdrefine.write(mesh, examples.plate_with_hole())
+    figures = [run("refine", mesh, tmp_path / "o.msh", "--levels", n).stderr
+               for n in (20, 40)]
+    assert figures[0] != figures[1] and "more than 1e+21 GiB" in figures[1], figures
+    for word in ("3_0", "\u0661\u0662", "1.5"):
+        (tmp_path / "marks.txt").write_text(f"{word}\n", encoding="utf-8")
+        result = run("refine", mesh, tmp_path / "o.msh", "--mark-file", tmp_path / "marks.txt")
+        assert result.returncode == 1 and "is not a triangle id" in result.stderr, result
+    result = run("refine", mesh, tmp_path / "T.Node")
+    assert result.returncode == 1 and "lower case" in result.stderr
+    assert not list(tmp_path.glob("T.*"))
+
+
+def test_afem_demo_of_one_cycle_fits_no_slope(tmp_path, run):
+    """A slope of one point: NumPy's 'Polyfit may be poorly conditioned' on stderr."""
+    pytest.importorskip("skfem")  # the fem extra: installed wherever the tests run
+    result = run("demo", tmp_path / "af", "--afem", "--cycles", "1", "-q")
+    assert result.returncode == 0 and result.stderr == "", result.stderr

@@ -211,8 +211,9 @@ def plot_error(results: dict[str, list[dict]], ax=None):
     ax = ax or plt.figure(figsize=(6, 4.5)).add_subplot()
     for method, cycles in results.items():
         marker, line = _STYLE.get(method, ("x", "-"))
+        fitted = f" (rate {rate(cycles):.2f})" if len(cycles) > 1 else ""  # a slope
         ax.loglog([c["dofs"] for c in cycles], [c["error"] for c in cycles], marker=marker,
-                  linestyle=line, label=f"{method} (rate {rate(cycles):.2f})")
+                  linestyle=line, label=f"{method}{fitted}")
     first = next(iter(results.values()))
     d0, e0 = first[0]["dofs"], first[0]["error"]
     d = np.array([d0, max(c["dofs"] for cs in results.values() for c in cs)])

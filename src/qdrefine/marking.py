@@ -94,10 +94,9 @@ def mark_file(mesh: Mesh, path: str | PathLike[str]) -> NDArray[np.bool_]:
         raise ValueError(f"{path}: not a text file of triangle ids (or a .npy file)") from None
     for line, content in enumerate(text.splitlines(), start=1):
         for word in content.split("#", 1)[0].split():
-            try:
-                t = int(word)
-            except ValueError:
-                raise ValueError(f"{path}, line {line}: {word!r} is not a triangle id") from None
+            if not word.isascii() or not word.lstrip("+-").isdigit():  # int() takes 3_0, ١٢
+                raise ValueError(f"{path}, line {line}: {word!r} is not a triangle id")
+            t = int(word)
             if not 0 <= t < n:
                 raise ValueError(f"{path}, line {line}: triangle id {t} is outside 0..{n - 1}")
             ids.append(t)

@@ -103,8 +103,8 @@ def memory_needed(n_points: int, n_triangles: int, scheme: str | Scheme, levels:
     prev_n, prev_m = n, m
     for _ in range(levels):
         prev_n, prev_m = n, m
-        n, m, e = n + k * e, t * m, (k + 1) * e + inner * m
-        if m > 2**64:
+        n, m, e = n + k * e, t * m, (k + 1) * e + inner * m  # exact Python integers
+        if m > 2**100:  # beyond any memory (1e22 GiB): the message says "more than 1e+21"
             break
     if levels == 0:
         return 0

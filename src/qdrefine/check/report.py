@@ -55,6 +55,9 @@ KINDS: dict[str, tuple[str, str]] = {
     "too-thin": ("warning", "triangles so thin for their distance from the origin that their "
                             "new points, rounded to float64, would flatten a child: "
                             "refinement refuses them (`qdrefine check` only)"),
+    "file": ("warning", "what the reader warns about the file (an entity in several physical "
+                        "groups, elements given again with another tag, a field record "
+                        "ignored): what reading keeps and what it drops (`qdrefine check` only)"),
     "skipped": ("note", "checks that could not run because of an earlier error"),
 }
 

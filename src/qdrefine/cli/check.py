@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from typing import Any
 
 from ..check import MIN_ANGLE, Checked, Problem
@@ -42,7 +43,11 @@ def _angle(text: str) -> float:
 
 def run(args: argparse.Namespace) -> int:
     with _common.session():
-        raw, found = check_file(args.input, min_angle=args.min_angle)
+        with warnings.catch_warnings(record=True) as said:  # the reader's: in the report
+            warnings.simplefilter("always")
+            raw, found = check_file(args.input, min_angle=args.min_angle)
+        for w in said:
+            found.problems.append(Problem("file", str(w.message)))
         if found.ok:  # what refine would refuse: one level of the scheme, exactly
             too_thin(raw, found, args.scheme)
         report = summary(args.input, found)

@@ -371,8 +371,9 @@ def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
             named = next((p for t, p in zip(temps, targets, strict=True)
                           if exc.filename is not None and str(t) == str(exc.filename)), None)
             if str(exc).startswith(tuple(str(p) for p in targets)) or (
-                    named is None and exc.errno not in WRITE_ERRNOS):
-                raise  # named already, or not a write of ours (e.g. reading a source)
+                    named is None and exc.errno is not None and exc.errno not in WRITE_ERRNOS):
+                raise  # named already, or not a write of ours (e.g. reading a source);
+                # no errno: NumPy's tofile refused ("N requested and M written")
             raise cannot_write(named or targets[0], exc.strerror or str(exc),
                                exc.errno) from None
     except BaseException:

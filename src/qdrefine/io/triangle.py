@@ -250,6 +250,10 @@ def write(path: Path, mesh, *, binary: bool = False) -> None:  # noqa: ARG001
 def write_chunks(path: Path, source: MeshChunks) -> None:
     """Write a mesh given chunk by chunk as Triangle's three files, one set (the same bytes
     as :func:`write` of the whole mesh)."""
+    if path.suffix != path.suffix.lower():  # T.Node would be written as T.node, T.ele ...
+        raise ValueError(f"{path}: Triangle files are written as NAME.node, NAME.ele and "
+                         f"NAME.poly; give the extension in lower case "
+                         f"({path.with_suffix(path.suffix.lower()).name})")
     base = base_of(path)
     targets = [base.with_suffix(s) for s in (".node", ".ele", ".poly")]
     stamping = Stamping()
