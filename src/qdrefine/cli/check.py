@@ -46,8 +46,11 @@ def run(args: argparse.Namespace) -> int:
         with warnings.catch_warnings(record=True) as said:  # the reader's: in the report
             warnings.simplefilter("always")
             raw, found = check_file(args.input, min_angle=args.min_angle)
-        for w in said:
-            found.problems.append(Problem("file", str(w.message)))
+        for w in said:  # a library's deprecation notice and the like is not about the file
+            if issubclass(w.category, UserWarning):
+                found.problems.append(Problem("file", str(w.message)))
+            else:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         if found.ok:  # what refine would refuse: one level of the scheme, exactly
             too_thin(raw, found, args.scheme)
         report = summary(args.input, found)
