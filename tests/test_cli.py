@@ -391,7 +391,7 @@ def test_review_of_the_command_line(tmp_path, run, monkeypatch):
     figures = [run("refine", mesh, tmp_path / "o.msh", "--levels", n).stderr
                for n in (20, 40)]
     assert figures[0] != figures[1] and "more than 1e+21 GiB" in figures[1], figures
-    for word in ("3_0", "\u0661\u0662", "1.5"):
+    for word in ("3_0", "\u0661\u0662", "1.5", "+-5"):
         (tmp_path / "marks.txt").write_text(f"{word}\n", encoding="utf-8")
         result = run("refine", mesh, tmp_path / "o.msh", "--mark-file", tmp_path / "marks.txt")
         assert result.returncode == 1 and "is not a triangle id" in result.stderr, result

@@ -14,6 +14,7 @@ True
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from os import PathLike
 from pathlib import Path
@@ -62,6 +63,10 @@ def mark_tag(mesh: Mesh, tags: int | ArrayLike) -> NDArray[np.bool_]:
     return np.isin(mesh.cell_tags, wanted)
 
 
+#: A triangle id in a mark file: ASCII digits, an optional sign.
+_ID = re.compile(r"[+-]?[0-9]+")
+
+
 def mark_file(mesh: Mesh, path: str | PathLike[str]) -> NDArray[np.bool_]:
     """Triangles listed in a file: a text file of triangle ids (0-based, whitespace or
     line separated, ``#`` starts a comment), or a ``.npy`` file of ids ``(K,) int`` or of a
@@ -94,7 +99,7 @@ def mark_file(mesh: Mesh, path: str | PathLike[str]) -> NDArray[np.bool_]:
         raise ValueError(f"{path}: not a text file of triangle ids (or a .npy file)") from None
     for line, content in enumerate(text.splitlines(), start=1):
         for word in content.split("#", 1)[0].split():
-            if not word.isascii() or not word.lstrip("+-").isdigit():  # int() takes 3_0, ١٢
+            if not _ID.fullmatch(word):  # int() also takes 3_0 and ١٢
                 raise ValueError(f"{path}, line {line}: {word!r} is not a triangle id")
             t = int(word)
             if not 0 <= t < n:
