@@ -278,12 +278,11 @@ def open(path: PathLike) -> MeshStore:
         except (ValueError, TypeError, KeyError) as exc:  # e.g. a damaged zarr.json
             raise ValueError(f"{url}: array '{name}' cannot be opened ({exc})") from None
     check_arrays(url, arrays)
-    metadata = dict(group.attrs["qdrefine"].get("metadata") or {}) \
-        if isinstance(group.attrs["qdrefine"].get("metadata") or {}, dict) else None
-    if metadata is None:
+    metadata = group.attrs["qdrefine"].get("metadata") or {}
+    if not isinstance(metadata, dict):
         raise ValueError(f"{url}: the 'qdrefine' attribute's metadata is not a mapping: the "
                          "store is damaged")
-    return MeshStore(url, metadata=metadata, **arrays)
+    return MeshStore(url, metadata=dict(metadata), **arrays)
 
 
 def check_arrays(path: str, arrays: Mapping[str, Any]) -> None:
@@ -344,13 +343,16 @@ def written(path: str, n_points: int, name: str, start: int, block: NDArray
     for the arrays a streamed file would carry into an unreadable one, a vertex index
     outside the points, a coordinate that is not finite or a tag beyond int64 (a damaged
     store)."""
+    if name == "points":  # NaN, written so or a chunk never written, or infinite
+        bad = ~np.isfinite(block)
+        if bad.any():
+            row = _first_bad(start, bad)
+            raise ValueError(f"{path}: points row {row} {tuple(block[row - start].tolist())} "
+                             "is not finite (NaN is also what a chunk never written reads "
+                             "as): the store is incomplete or damaged")
+        return block
     fill = FILL.get(name)
     hole = np.isnan(block) if fill is not None and np.isnan(fill) else block == fill
-    if name == "points" and hole.any():  # NaN: written so, or a chunk never written
-        row = _first_bad(start, hole)
-        raise ValueError(f"{path}: points row {row} {tuple(block[row - start].tolist())} is "
-                         "not finite (NaN is also what a chunk never written reads as): the "
-                         "store is incomplete or damaged")
     if fill is not None and hole.any():
         raise ValueError(f"{path}: {name} row {_first_bad(start, hole)} holds the fill value of "
                          "a chunk that was never written: the store is incomplete or damaged")
@@ -363,10 +365,6 @@ def written(path: str, n_points: int, name: str, start: int, block: NDArray
                              "damaged")
     if name in ("cell_tags", "edge_tags"):
         _unsigned_beyond_int64(path, name, start, block)
-    if name == "points" and len(block) and not np.isfinite(block).all():
-        row = _first_bad(start, ~np.isfinite(block))
-        raise ValueError(f"{path}: points row {row} {tuple(block[row - start].tolist())} is "
-                         "not finite: the store is damaged")
     return block
 
 
