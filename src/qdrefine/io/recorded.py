@@ -17,12 +17,19 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["record", "restored"]
+__all__ = ["record", "record_of", "restored"]
 
 
 def record(a: NDArray) -> dict:
     """The record of field ``a (N, ...)``: ``{"shape": [...], "dtype": "<f8"}`` (JSON)."""
     return {"shape": list(a.shape[1:]), "dtype": a.dtype.str}
+
+
+def record_of(records: object, where: str, name: str) -> object:
+    """The record of field ``name`` of ``where`` (``"point"``, ``"cell"``) in a file's
+    ``{where: {name: record}}`` (None where the file's records are not such a mapping)."""
+    fields = records.get(where) if isinstance(records, dict) else None
+    return fields.get(name) if isinstance(fields, dict) else None
 
 
 def restored(values: NDArray, spec: object, rows: int, where: str) -> NDArray | None:

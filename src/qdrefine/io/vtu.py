@@ -33,7 +33,7 @@ from ._core import (
     split_data,
     writable_data,
 )
-from .recorded import record, restored
+from .recorded import record, record_of, restored
 from .xml_names import check_xml_names
 
 __all__ = ["read", "write"]
@@ -168,9 +168,8 @@ def _read(path: Path, data: bytes) -> RawMesh:
     shapes = meta.get("shapes")
 
     def kept(values: NDArray, where: str, name: str, rows: int) -> NDArray:
-        spec = shapes.get(where, {}) if isinstance(shapes, dict) else None
-        spec = spec.get(name) if isinstance(spec, dict) else None
-        out = restored(values, spec, rows, f"{path}: {where} data {name!r}")
+        out = restored(values, record_of(shapes, where, name), rows,
+                       f"{path}: {where} data {name!r}")
         return np.array(values) if out is None else out
 
     point_data = {}

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from .._core import RawMesh, check_readable, from_blocks, read_bytes, split_data
 from .._text import BadNumber, parse, parse_table
-from ..recorded import restored
+from ..recorded import record_of, restored
 from .common import ELEMENTS, EXACT_INT, GmshError
 
 __all__ = ["read"]
@@ -845,7 +845,7 @@ def _field(f: _File, c: _Content, where: str, name: str, values: NDArray, rows: 
     out = np.full((size, values.shape[1]), np.nan)
     ok = rows >= 0
     out[rows[ok]] = values[ok]
-    spec = c.dtypes.get(where, {}).get(name) if isinstance(c.dtypes.get(where), dict) else None
+    spec = record_of(c.dtypes, where, name)
     stored = out
     shape = spec.get("shape") if isinstance(spec, dict) else None
     if isinstance(shape, list) and all(type(s) is int and s >= 0 for s in shape):
