@@ -238,8 +238,9 @@ def check_url_output(path: str, inputs: tuple[str, ...] = ()) -> None:
     ``file://``, ``memory:///b`` against ``memory://b``)."""
     from ..store.locations import canonical
 
+    place = canonical(location(path))
     for i in inputs:
-        if canonical(location(path)) == canonical(location(i)):
+        if place == canonical(location(i)):
             raise ValueError(f"{path}: the output would overwrite the input; choose another "
                              "name")
 

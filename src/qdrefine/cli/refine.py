@@ -133,7 +133,6 @@ def _on_dask(args: argparse.Namespace) -> int:
         if not args.output.rstrip("/").lower().endswith(_common.STORE) or args.binary:
             raise ValueError(f"{args.output}: expected a Zarr mesh store (a name ending in "
                              f"{_common.STORE}), without --binary")
-        _common.check_url_output(args.output, (args.input,))
     else:
         _common.check_output(args.output, (args.input,), kinds="store", binary=args.binary)
     levels = 1 if args.levels is None else args.levels
