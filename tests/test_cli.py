@@ -2,6 +2,9 @@
 point itself by ``python -m qdrefine``), and its error paths."""
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -405,3 +408,35 @@ def test_afem_demo_of_one_cycle_fits_no_slope(tmp_path, run):
     pytest.importorskip("skfem")  # the fem extra: installed wherever the tests run
     result = run("demo", tmp_path / "af", "--afem", "--cycles", "1", "-q")
     assert result.returncode == 0 and result.stderr == "", result.stderr
+
+
+def test_version():
+    result = cli("--version")
+    assert result.returncode == 0 and result.stdout == f"qdrefine {qdrefine.__version__}\n"
+
+
+def _info_with_stdout(stdout) -> subprocess.CompletedProcess:
+    process = subprocess.run([sys.executable, "-m", "qdrefine", "info",
+                              str(DATA / "two_regions_41.msh")],
+                             stdout=stdout, stderr=subprocess.PIPE, text=True, timeout=300)
+    return subprocess.CompletedProcess(process.args, process.returncode, None,
+                                       without_compile_note(process.stderr))
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs Linux's /dev/full")
+def test_a_full_standard_output_is_named():
+    with open("/dev/full", "w") as full:
+        result = _info_with_stdout(full)
+    assert result.returncode == 1
+    assert result.stderr == ("qdrefine: error: [Errno 28] No space left on device: "
+                             "'standard output'\n")
+
+
+def test_a_closed_pipe_is_not_an_error():  # `qdrefine info x.msh | head -1`
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        result = _info_with_stdout(write)
+    finally:
+        os.close(write)
+    assert result.returncode == 0 and result.stderr == ""

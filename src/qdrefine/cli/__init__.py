@@ -13,9 +13,11 @@ traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
+from typing import Any, TextIO
 
 from ..interrupts import TERMINATED, sigterm_as_interrupt
 from ..jit import compile_note
@@ -41,6 +43,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Refine 2D triangle meshes with seven-triangle partitions (7T-QD).",
     )
     _common.setup(parser, quiet=False)  # one-line errors here too (an unknown command)
+    parser.add_argument("--version", action="version", version=f"qdrefine {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         module = importlib.import_module(f"{__name__}.{name.replace('-', '_')}")
@@ -68,8 +71,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with sigterm_as_interrupt(), compile_note(COMPILING):  # a kill cleans up as Ctrl-C
-            return int(args.handler(args))
+        with sigterm_as_interrupt(), compile_note(COMPILING), \
+                contextlib.redirect_stdout(_NamedStream(sys.stdout, "standard output")):
+            code = int(args.handler(args))  # a kill cleans up as Ctrl-C
+            sys.stdout.flush()  # a full disk behind '>' is said here, not at exit
+            return code
     except BrokenPipeError:  # e.g. `qdrefine info x.msh | head`: not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
@@ -87,6 +93,39 @@ def main(argv: list[str] | None = None) -> int:
         terminated = str(exc) == TERMINATED
         print(f"qdrefine: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
         return 143 if terminated else 130
+
+
+def _version() -> str:
+    from .. import __version__
+    return __version__
+
+
+class _NamedStream:
+    """A text stream whose write errors name it (``> /dev/full``: "No space left on device:
+    'standard output'", where the bare error named nothing)."""
+
+    def __init__(self, stream: TextIO, name: str) -> None:
+        self._stream, self._name = stream, name
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except OSError as exc:
+            raise self._named(exc) from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except OSError as exc:
+            raise self._named(exc) from None
+
+    def _named(self, exc: OSError) -> OSError:
+        if exc.filename is None and not isinstance(exc, BrokenPipeError):
+            exc.filename = self._name
+        return exc
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
 
 
 def _joined_negative_values(argv: list[str]) -> list[str]:
