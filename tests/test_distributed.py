@@ -187,7 +187,8 @@ GOOD = [[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]]
 @pytest.mark.parametrize("points,triangles,edges,message", [
     (SQUARE, GOOD[:3] + [[1, 2, 5]], None, r"bad.zarr: triangle 3 \(1, 2, 5\) is clockwise"),
     (SQUARE, GOOD[:3] + [[1, 4, 9]], None,
-     r"bad.zarr: triangle 3 \(1, 4, 9\) has a vertex index outside 0..5"),
+     r"bad.zarr: triangles row 3 \(1, 4, 9\) has a vertex index outside 0..5: the store "
+     "is damaged"),
     (SQUARE[:5] + [[2, np.nan]], GOOD, None, r"bad.zarr: point 5 has a non-finite"),
     (SQUARE, GOOD, [[0, 1], [3, 1]], r"bad.zarr: edge 1 \(1, 3\) is not an edge of any "),
 ])
@@ -646,7 +647,7 @@ def _damaged(tmp_path: Path, name: str, damage) -> Path:
     ("cell_tags", lambda p: (p / "cell_tags" / "c" / "1").unlink(),
      "cell_tags row 100 holds the fill value"),
     ("triangles", lambda p: __import__("shutil").rmtree(p / "triangles" / "c" / "1"),
-     r"(triangles row|triangle) 100 (holds the fill value|\(-1, -1, -1\) has a vertex index)"),
+     "triangles row 100 holds the fill value"),
 ])
 def test_a_store_with_a_missing_chunk_is_refused_not_refined(tmp_path, client, levels, array,
                                                              damage, message):
@@ -657,7 +658,7 @@ def test_a_store_with_a_missing_chunk_is_refused_not_refined(tmp_path, client, l
     with pytest.raises(ValueError, match=message):
         refine_store(path, tmp_path / "out.zarr", levels=levels, client=client)
     assert not (tmp_path / "out.zarr").exists()
-    with pytest.raises(ValueError, match="holds the fill value|has a vertex index outside"):
+    with pytest.raises(ValueError, match=message):
         store.to_mesh(path)
 
 

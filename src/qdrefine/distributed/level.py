@@ -450,19 +450,7 @@ def _points_frame(rows: tuple[int, int], job: _Job) -> pd.DataFrame:
 
 def _triangles(job: _Job, a: int, b: int) -> NDArray[np.int64]:
     """Triangles ``a .. b - 1`` of the source, indices checked."""
-    return _vertex_rows(job, "triangles", "triangle", a, b)
-
-
-def _vertex_rows(job: _Job, name: str, what: str, a: int, b: int) -> NDArray[np.int64]:
-    """Rows ``a .. b - 1`` of the source's ``name`` array as ``int64``; ``ValueError`` naming
-    the first row (a ``what``) with a vertex index outside ``0 .. n - 1``."""
-    rows = mesh_store.read_rows(job.path, job.src[name], name, a, b).astype(np.int64)
-    bad = ((rows < 0) | (rows >= job.n)).any(axis=1)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{job.path}: {what} {a + i} {tuple(rows[i].tolist())} has a vertex "
-                         f"index outside 0..{job.n - 1}")
-    return rows
+    return _source(job, "triangles", a, b).astype(np.int64)
 
 
 def _source(job: _Job, name: str, a: int, b: int) -> NDArray:
@@ -568,7 +556,7 @@ def _tagged_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
     import pandas as pd
 
     j, (a, b) = item
-    e = _vertex_rows(job, "edges", "edge", a, b)
+    e = _source(job, "edges", a, b).astype(np.int64)
     keys = np.unique(e.min(axis=1) * job.n + e.max(axis=1))
     nan = np.full(len(keys), np.nan)
     return pd.DataFrame({"key": keys, "j": np.full(len(keys), j, dtype=np.int64),
@@ -587,7 +575,7 @@ def _edge_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> l
 def _tagged_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list[tuple]:
     """The tagged edges' sorted distinct keys, cut as in :func:`_edge_pieces` (no ends)."""
     a, b = rows
-    e = _vertex_rows(job, "edges", "edge", a, b)
+    e = _source(job, "edges", a, b).astype(np.int64)
     keys = np.unique(e.min(axis=1) * job.n + e.max(axis=1))
     return [(k, None) for k in np.split(keys, np.searchsorted(keys, cuts))]
 
@@ -767,7 +755,7 @@ def _split_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: i
                  b: int) -> None:
     """Tagged edges ``a .. b - 1`` as ``k + 1`` pieces each (rows ``a (k+1) ..``)."""
     k = job.k
-    tagged = _vertex_rows(job, "edges", "edge", a, b)
+    tagged = _source(job, "edges", a, b).astype(np.int64)
     lo, hi = tagged.min(axis=1), tagged.max(axis=1)
     gid = _global_ids(part, offsets, lo * job.n + hi)
     if (gid < 0).any():
