@@ -506,3 +506,21 @@ def test_a_partitioned_gmsh_file_keeps_its_physical_groups(tmp_path, binary):
         tagged(plain, plain.triangles, plain.cell_tags)
     assert tagged(part, part.edges, part.edge_tags) == tagged(plain, plain.edges, plain.edge_tags)
     assert part.physical_names == plain.physical_names
+
+
+def test_every_reader_takes_the_same_field_as_the_tags(tmp_path):
+    """A file with several cell fields that readers take as tags (meshio writes Gmsh's
+    ``gmsh:physical`` beside a ``tag``): our VTU reader and meshio's readers take the same
+    one (ours took ``tag``, meshio's ``gmsh:physical``)."""
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    mesh = Mesh(points, np.array([[0, 1, 2], [0, 2, 3]]), cell_tags=np.array([7, 8]),
+                cell_data={"gmsh_physical": np.array([1, 2])})
+    qdrefine.write(tmp_path / "ours.vtu", mesh)  # our reader's format: appended raw data
+    path = tmp_path / "ours.vtu"
+    path.write_bytes(path.read_bytes().replace(b'Name="gmsh_physical"', b'Name="gmsh:physical"'))
+    meshio.write(tmp_path / "m.vtk", meshio.Mesh(points, [("triangle", mesh.triangles)], cell_data={
+        "tag": [np.array([7, 8])], "gmsh:physical": [np.array([1, 2])]}))
+    for name in ("ours.vtu", "m.vtk"):
+        read = qdrefine.read(tmp_path / name)
+        assert read.cell_tags.tolist() == [1, 2], name
+        assert read.cell_data["tag"].tolist() == [7, 8], name

@@ -219,10 +219,11 @@ def writable_data(value) -> NDArray:
 
 
 #: Cell-data names that the VTU and meshio readers take as the cell tags (the first present,
-#: in this order for VTU), and those meshio's readers skip (Gmsh's entity tags). A mesh's
+#: in this order: a file meshio wrote from a Gmsh mesh may hold several), and those meshio's
+#: readers skip (Gmsh's entity tags). A mesh's
 #: own cell data under one of them would come back as its tags (its tagged edges lost) or
 #: not at all, so the writers refuse it (``mesh_data``'s ``reserved``).
-TAG_NAMES = ("tag", "gmsh:physical", "medit:ref", "cell_tags")
+TAG_NAMES = ("gmsh:physical", "medit:ref", "tag", "cell_tags")
 SKIPPED_NAMES = ("gmsh:geometrical", "gmsh:dim_tags")
 
 

@@ -32,10 +32,8 @@ from ._core import (
     writable_data,
 )
 
-__all__ = ["read_with_meshio", "write_with_meshio", "meshio_mesh", "raw_from_meshio", "TAG_KEYS"]
+__all__ = ["read_with_meshio", "write_with_meshio", "meshio_mesh", "raw_from_meshio"]
 
-#: Cell-data names read as tags, in order of preference.
-TAG_KEYS = ("gmsh:physical", "medit:ref", "tag", "cell_tags")
 _WRITE_KEY = {"gmsh": "gmsh:physical", "medit": "medit:ref"}
 _SKIP = set(SKIPPED_NAMES)
 #: What meshio's readers of formats without data fields make up (Medit's vertex references,
@@ -189,7 +187,7 @@ def _arrays(m, made_up: set[str] = frozenset()) -> tuple:
     points = np.asarray(m.points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] not in (2, 3):
         raise ValueError(f"points must have 2 or 3 coordinates, got shape {points.shape}")
-    key = next((k for k in TAG_KEYS if k in m.cell_data), None)
+    key = next((k for k in TAG_NAMES if k in m.cell_data), None)
     blocks, tags = [], []
     for i, block in enumerate(m.cells):
         data = np.asarray(block.data)
