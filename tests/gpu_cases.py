@@ -222,6 +222,16 @@ def test_bad_input_is_refused_with_one_line():
         (lambda: refine_device(mesh.points, mesh.triangles, levels=-1), "levels"),
         (lambda: refine_device(mesh.points, mesh.triangles, cell_tags=np.zeros(5, np.int64)),
          "cell_tags"),
+        # host arrays of other dtypes: cast only where no value changes (GPU review)
+        (lambda: refine_device(mesh.points, mesh.triangles + 0.5),
+         "triangles must hold integers, got dtype float64"),
+        (lambda: refine_device(mesh.points, mesh.triangles.astype(np.uint64) + 2**63),
+         "triangles has values beyond int64"),
+        (lambda: refine_device(mesh.points, mesh.triangles.astype(np.uint64) + 2**32),
+         r"\[0, 4\), got \[4294967296"),  # it wrapped to 0..3
+        (lambda: refine_device(mesh.points, mesh.triangles, cell_tags=[1.7, 2.2]),
+         "cell_tags must hold integers"),
+        (lambda: refine_device(mesh.points.astype(bool), mesh.triangles), "must be numbers"),
         (lambda: refine(mesh, device="tpu"), "unknown device"),
         (lambda: refine(mesh, marked=[0], device="cuda"), "CPU only"),
     ]
@@ -243,14 +253,17 @@ def test_input_the_mesh_would_refuse_is_refused_on_the_device_with_its_message()
         ([[0, 1, 3], [2, 4, 3]], points),  # triangle 1: zero area
         ([[0, 1, 2]], np.array([[0.0, 0.0], [1.0, 0.0], [0.0, np.inf]])),
         ([[0, 1, 2]], np.array([[0.0, 0.0], [1.0, 0.0], [1e-200, 1.0]])),
+        # a point out of range before a non-finite one: Mesh names the non-finite one
+        ([[0, 1, 2]], np.array([[0.0, 1e-200], [1.0, np.nan], [0.0, 1.0]])),
     ]
     for tris, pts in cases:
         tris = np.array(tris)
         with pytest.raises(ValueError) as host:
             Mesh(pts, tris)
-        with pytest.raises(ValueError) as device:
-            refine_device(cuda.to_device(pts), cuda.to_device(tris), levels=2)
-        assert str(device.value) == str(host.value)
+        for levels in (0, 2):  # levels=0 skipped every check
+            with pytest.raises(ValueError) as device:
+                refine_device(cuda.to_device(pts), cuda.to_device(tris), levels=levels)
+            assert str(device.value) == str(host.value)
     edges, edge_tags = np.array([[0, 1], [0, 2], [1, 3]]), np.array([1, 2, 3])
     with pytest.raises(ValueError) as host:
         Mesh(points, [[0, 1, 3]], edges=edges, edge_tags=edge_tags)
@@ -292,3 +305,11 @@ def test_data_comes_through_as_on_the_cpu(scheme):
                 assert a[name].dtype == b[name].dtype and a[name].shape == b[name].shape
                 assert np.array_equal(a[name].view(np.uint8), b[name].view(np.uint8)), name
         assert dict(gpu.physical_names) == dict(cpu.physical_names)
+
+
+def test_no_level_returns_the_mesh_itself_as_on_the_cpu():
+    """``levels=0`` gave a copy without the history on the GPU (the CPU returns the mesh),
+    so the next ``marked`` step behaved differently."""
+    mesh = refine(examples.square(2), "7t-qd", marked=[0])
+    assert mesh.transitions is not None
+    assert refine(mesh, "7t-qd", 0, device="cuda") is refine(mesh, "7t-qd", 0) is mesh

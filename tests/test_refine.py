@@ -218,6 +218,12 @@ def test_refinement_stays_in_the_range_of_exact_predicates():
     with pytest.raises(ValueError, match=r"^refining this mesh makes a new point at \(.*\), "
                                          r"below the supported range"):
         refine(wide, marked=[0], levels=2)
+    # a mesh refined before keeps a lower bound of its smallest coordinate: the message
+    # gave the bound (2.28597e-100) as the mesh's smallest coordinate (GPU review)
+    a, b = 2.0**-276, -(2.0**-276 - 2.0**-328)
+    once = refine(Mesh([[a, 0], [0, 1], [b, 0]], [[0, 1, 2]]), "4t-red")
+    with pytest.raises(ValueError, match="the mesh's smallest nonzero coordinate is 9.1439e-100"):
+        refine(once, "4t-red", 4)
     small = Mesh(tiny.points * 1e17, tiny.triangles)
     fine = refine(small)
     assert Mesh(fine.points, fine.triangles).n_triangles == 7  # valid input again

@@ -125,7 +125,8 @@ def _in_range(mesh: Mesh, out: Mesh, levels: int) -> Mesh:
         bad = ((a < lo) & (a != 0)).any(axis=1)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise below_range(i, out.points[i], smallest)
+            a = np.abs(mesh.points)  # the real smallest, not a bound an earlier call kept
+            raise below_range(i, out.points[i], float(np.min(a, where=a > 0, initial=np.inf)))
         bound = float(np.min(a, where=a > 0, initial=np.inf))
     object.__setattr__(out, "_smallest", bound)
     return out

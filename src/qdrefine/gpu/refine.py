@@ -26,7 +26,7 @@ from ..fields import refine_point_data
 from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, check_memory, memory_needed
 from ..mesh import Mesh, index_dtype
-from ..predicates import factor_forms
+from ..predicates import factor_forms, orient_signs
 from ..schemes import Scheme, get_scheme
 from ..uniform import RefusedTriangle, check_rounding
 from . import kernels as k
@@ -132,8 +132,9 @@ def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: in
                              f"{etags.shape[0]}")
         check_indices(tagged, n, "edges")
     check_device_memory(n, m, sch, levels, tags is not None)
-    if levels:
-        check_points(pts)
+    check_points(pts)
+    if not levels:  # level 1 checks the orientation as it emits: here, on the host
+        _check_orientation(_host(pts), _host(tri))
     tables = _Tables(sch)
     exact: list[int] = []
     ends: list[NDArray[np.int64]] = []
@@ -176,6 +177,8 @@ def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
     require_gpu()
+    if not levels:  # the mesh itself, as on the CPU (its history included)
+        return mesh
     check_memory(mesh, sch, levels)  # the result comes back to the host
     out, ends = _refine_device(mesh.points, mesh.triangles, sch, levels,
                                cell_tags=mesh.cell_tags, edges=mesh.edges,
@@ -200,6 +203,7 @@ def check_device_memory(n_points: int, n_triangles: int, scheme: Scheme, levels:
     the device's work too) exceeds the device's free memory."""
     if levels == 0:
         return
+    require_gpu()
     free = float(cuda.current_context().get_memory_info()[0])
     need = memory_needed(n_points, n_triangles, scheme, levels, tagged)
     if need > free:
@@ -310,8 +314,8 @@ def _device(a, name: str, dtypes: tuple, columns: int | None):
         d = cuda.as_cuda_array(cupy.from_dlpack(a))
     else:
         host = np.asarray(a)
-        if host.dtype not in dtypes and host.dtype.kind in "iuf" and host.size:
-            host = host.astype(dtypes[0])
+        if host.dtype not in dtypes and host.size:
+            host = _cast(host, name, np.dtype(dtypes[0]).kind == "f")
         d = cuda.to_device(np.ascontiguousarray(host))
     if d.dtype not in dtypes:
         raise ValueError(f"{name} must have dtype {' or '.join(np.dtype(t).name for t in dtypes)}"
@@ -323,6 +327,36 @@ def _device(a, name: str, dtypes: tuple, columns: int | None):
     if not d.is_c_contiguous():
         raise ValueError(f"{name} must be C-contiguous on the device")
     return d
+
+
+def _cast(host: NDArray, name: str, real: bool) -> NDArray:
+    """A host array of another dtype as ``float64`` (``real``: coordinates) or ``int64``
+    (indices, tags), refused as :class:`qdrefine.Mesh` refuses it where that would change a
+    value (a fraction, a wrapped integer) or is not a number."""
+    kind = host.dtype.kind
+    if real:
+        if kind not in "iuf":
+            raise ValueError(f"{name} must be numbers, got dtype {host.dtype}")
+        return host.astype(np.float64)
+    if kind not in "iu":
+        raise ValueError(f"{name} must hold integers, got dtype {host.dtype}")
+    if kind == "u" and host.max() > np.iinfo(np.int64).max:
+        raise ValueError(f"{name} has values beyond int64 (up to {host.max()})")
+    return host.astype(np.int64)
+
+
+def _check_orientation(points: NDArray, triangles: NDArray) -> None:
+    """``ValueError`` naming the first zero-area or clockwise triangle (exact, the wording
+    of :class:`qdrefine.Mesh`)."""
+    signs = orient_signs(points, triangles.astype(np.int64))
+    bad = np.flatnonzero(signs <= 0)
+    if bad.size:
+        t = int(bad[0])
+        corners = tuple(int(v) for v in triangles[t])
+        if signs[t] == 0:
+            raise ValueError(f"triangle {t} {corners} has zero area")
+        raise ValueError(f"triangle {t} {corners} is clockwise; triangles must be "
+                         "counter-clockwise with positive area")
 
 
 def _dlpack_on_cuda(a) -> bool:
@@ -342,6 +376,7 @@ def pass_times(points, triangles, scheme: str | Scheme = "7t-qd", strict: bool =
     device synchronized at each pass boundary; for benchmarks)."""
     import time
 
+    require_gpu()
     pts = _device(points, "points", (np.float64,), 2)
     tri = _device(triangles, "triangles", (np.int32, np.int64), 3)
     times: dict[str, float] = {}
