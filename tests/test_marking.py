@@ -185,3 +185,10 @@ def test_mark_tag_takes_integer_tags_only():
     with pytest.raises(ValueError, match="cell tags are integers, got 1.7"):
         marking.mark_tag(mesh, 1.7)
     assert marking.mark_tag(mesh, np.int32(1)).sum() == (mesh.cell_tags == 1).sum()
+
+
+def test_dorfler_with_theta_one_marks_every_nonzero_indicator():
+    """The rounded cumulative sum reached its total at the first entry: [1, 1e-20] marked
+    only the first, short of the whole sum (review)."""
+    assert mark_dorfler([1.0, 1e-20], 1.0).tolist() == [True, True]
+    assert mark_dorfler([1.0, 0.0, 3.0], 1.0).tolist() == [True, False, True]

@@ -391,3 +391,8 @@ def test_bucket_scan_equals_the_edge_scan(seed, n_points):
     scan = check.bucket_scan(t, b.local, b.starts, b.first, b.shift, b.mult)
     assert serial[:4] == scan[:4]
     assert np.array_equal(serial[4], scan[4]) and np.array_equal(serial[5], scan[5])
+
+
+def test_physical_names_must_be_a_mapping():
+    with pytest.raises(TypeError, match="physical_names must be a mapping"):
+        Mesh([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]], physical_names=[(2, 1)])

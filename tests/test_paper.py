@@ -295,3 +295,15 @@ def test_convergence_table_gives_the_largest_estimate_of_all_regions(ctx):
     want = max(dg.region_area(k, tol=1e-6).error for k in ("C1", "C2", "C3")) / dg.HALF_AREA
     assert shown == pytest.approx(want, rel=0.06)
     assert shown > 1e-9  # C2's and C3's estimates at this tolerance, not C1's
+
+
+def test_iterate_refuses_digits_its_keys_cannot_hold():
+    """At 10 digits the y part of a class key spilled into the x part (review)."""
+    with pytest.raises(ValueError, match="digits must be in 0..9"):
+        it.iterate("7t-qd", [[0.3, 0.7]], levels=1, digits=10)
+
+
+def test_paper_refuses_an_empty_output_name(run):
+    result = run("paper", "", "--no-figures")
+    assert result.returncode == 1
+    assert result.stderr == "qdrefine: error: the output directory is an empty name\n"

@@ -239,6 +239,8 @@ def mark_dorfler(indicator: ArrayLike, theta: float) -> NDArray[np.bool_]:
     mask = np.zeros(eta.shape[0], dtype=bool)
     if not eta.size or eta.max() == 0:
         return mask
+    if theta == 1.0:  # all of the sum: every nonzero one (the rounded cumulative sum
+        return eta > 0  # reached its total early: [1, 1e-20] marked only the first)
     # scaled by a power of two so that the largest is below 1: the sums cannot overflow
     # (values near 1e308 made the total inf), and every sum rounds as it did unscaled
     eta = np.ldexp(eta, -int(np.frexp(eta.max())[1]))

@@ -60,6 +60,9 @@ def _data(data: Mapping[str, ArrayLike] | None, size: int, what: str, rows: str,
 
 
 def _names(names: Mapping[tuple[int, int], str] | None) -> Mapping[tuple[int, int], str]:
+    if names is not None and not isinstance(names, Mapping):
+        raise TypeError("physical_names must be a mapping of (dimension, tag) pairs to names, "
+                        f"got {type(names).__name__}")
     out = {}
     for key, name in (names or {}).items():
         try:  # integers only: "21" or (2.7, 1.5) became (2, 1)

@@ -97,6 +97,8 @@ def write_all(outdir: str | Path, figures: bool = True,
     ``progress(text)`` is called as each of ``CONTEXT_STEPS + 2`` parts starts (``+ 1``
     without figures)."""
     start = time.time()
+    if not os.fspath(outdir):  # Path("") is the working directory
+        raise ValueError("the output directory is an empty name")
     out = Path(outdir)
     if out.exists() and not out.is_dir():  # before a minute of work, not after it
         raise NotADirectoryError(f"{out}: exists and is not a directory")

@@ -151,6 +151,8 @@ def iterate(scheme: str, points: ArrayLike, levels: int = 6, digits: int = 9) ->
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if levels < 1:
         raise ValueError(f"levels must be positive, got {levels}")
+    if not 0 <= digits <= 9:  # the key packs x and y in 31 bits each
+        raise ValueError(f"digits must be in 0..9, got {digits}")
     n = p.shape[0]
     scale = 10.0**digits
     sid = np.arange(n)
