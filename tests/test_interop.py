@@ -164,3 +164,22 @@ def test_overlapping_skfem_subdomains_are_refused():
     with pytest.raises(ValueError, match=r"skfem.MeshTri: triangle \d+ is in the subdomains "
                                          r"'a' and 'b'"):
         interop.from_skfem(m)
+
+
+def test_from_skfem_checks_what_it_reads():
+    """A boolean subdomain was read as the ids 0 and 1, -1 as the last triangle, and a
+    quadratic mesh lost its curved geometry silently (review)."""
+    from_skfem = interop.from_skfem
+    mesh = skfem.MeshTri().refined(2)
+    mask = np.zeros(mesh.t.shape[1], dtype=bool)
+    mask[:16] = True
+    for ids, message in ((mask, "subdomain 'a' must hold triangle ids .integers., got dtype "
+                                "bool"),
+                         (np.array([-1]), "subdomain 'a' has triangle id -1, outside 0..31"),
+                         (np.array([32]), "subdomain 'a' has triangle id 32, outside 0..31")):
+        with pytest.raises(ValueError, match=message):
+            from_skfem(mesh.with_subdomains({"a": ids}))
+    with pytest.raises(ValueError, match="boundary 'b' has facet id 99"):
+        from_skfem(mesh.with_boundaries({"b": np.array([99])}))
+    with pytest.raises(ValueError, match="takes a linear triangle mesh .* MeshTri2"):
+        from_skfem(skfem.MeshTri2.init_circle(1))

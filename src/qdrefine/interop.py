@@ -39,8 +39,9 @@ def to_meshio(mesh: Mesh):
     the tagged edges and a ``triangle`` block, tags as the cell data ``gmsh:physical``
     (untagged triangles: 0), the physical names as ``field_data`` (``name -> [tag, dim]``),
     point data, cell data (the edge rows zero) and the refinement history as the cell data
-    ``qdrefine:transitions`` and ``qdrefine:origins``; ``meshio.write`` of it to a ``.msh``
-    keeps all of them."""
+    ``qdrefine:transitions`` and ``qdrefine:origins``. Not every meshio writer takes all
+    of that: its Gmsh 4.1 writer wants ``gmsh:dim_tags``, its Gmsh 2.2 writer fields of
+    1, 3 or 9 components; :func:`qdrefine.write` to ``.msh`` keeps everything."""
     return meshio_mesh(mesh, "gmsh:physical", names=True)
 
 
@@ -87,6 +88,10 @@ def from_skfem(m) -> Mesh:
     (clockwise ones flipped, with a warning), named boundaries as tagged edges and named
     subdomains as cell tags (tags 1, 2, ... in name order, the names as physical names;
     triangles in no subdomain get tag 0)."""
+    elem = getattr(m, "elem", None)
+    if elem is not None and getattr(elem, "__name__", "") != "ElementTriP1":
+        raise ValueError(f"from_skfem takes a linear triangle mesh (skfem.MeshTri), got "
+                         f"{type(m).__name__} (its {elem.__name__} geometry would be lost)")
     points = np.ascontiguousarray(np.asarray(m.p, dtype=np.float64).T)
     triangles = np.ascontiguousarray(np.asarray(m.t, dtype=np.int64).T)
     if triangles.ndim != 2 or triangles.shape[1] != 3 or points.shape[1] != 2:
@@ -97,7 +102,7 @@ def from_skfem(m) -> Mesh:
         raw.cell_tags = np.zeros(len(triangles), dtype=np.int64)
         owner: dict[int, str] = {}
         for tag, name in enumerate(sorted(subdomains), start=1):
-            ids = np.asarray(subdomains[name], dtype=np.int64)
+            ids = _ids(subdomains[name], len(triangles), f"subdomain {name!r}", "triangle")
             taken = ids[raw.cell_tags[ids] != 0]
             if taken.size:  # a cell tag is one per triangle
                 raise ValueError(f"skfem.MeshTri: triangle {int(taken[0])} is in the subdomains "
@@ -111,12 +116,27 @@ def from_skfem(m) -> Mesh:
         facets = np.asarray(m.facets, dtype=np.int64).T
         edges, tags = [], []
         for tag, name in enumerate(sorted(boundaries), start=1):
-            ids = np.asarray(boundaries[name], dtype=np.int64)
+            ids = _ids(boundaries[name], len(facets), f"boundary {name!r}", "facet")
             edges.append(facets[ids])
             tags.append(np.full(len(ids), tag, dtype=np.int64))
             raw.physical_names[(1, tag)] = name
         raw.edges, raw.edge_tags = np.concatenate(edges), np.concatenate(tags)
     return mesh_of(raw)
+
+
+def _ids(value, n: int, what: str, of: str) -> NDArray[np.int64]:
+    """The ids of a scikit-fem subdomain or boundary, checked: integers in ``0 .. n - 1``
+    (a boolean mask read as ids 0 and 1, and -1 as the last one)."""
+    ids = np.asarray(value)
+    if ids.size and ids.dtype.kind not in "iu":
+        raise ValueError(f"skfem.MeshTri: {what} must hold {of} ids (integers), got dtype "
+                         f"{ids.dtype}")
+    ids = ids.astype(np.int64).ravel()
+    bad = (ids < 0) | (ids >= n)
+    if bad.any():
+        raise ValueError(f"skfem.MeshTri: {what} has {of} id {int(ids[bad][0])}, outside "
+                         f"0..{n - 1}")
+    return ids
 
 
 def to_triangulation(mesh: Mesh):
