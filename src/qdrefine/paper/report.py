@@ -275,13 +275,16 @@ def fig3(ctx) -> list[str]:
     if not qhull.get("available"):
         out.append("SciPy is not installed (`pip install qdrefine[paper]`): no search.\n")
     elif qhull["example"] is None:
-        out.append(f"No failure found in {qhull['trials']} triangles (SciPy "
-                   f"{qhull['version']}).\n")
+        out.append(f"No failure found in {qhull['tested']} triangles (SciPy "
+                   f"{qhull['version']}; {qhull['trials']} drawn, those of doubled area below "
+                   "1 not tested).\n")
     else:
         ex = qhull["example"]
         out.append(
-            f"SciPy {qhull['version']} (Qhull): on {qhull['failures']} of {qhull['trials']} "
-            "random triangles with one-decimal coordinates, `scipy.spatial.Delaunay` of the "
+            f"SciPy {qhull['version']} (Qhull): on {qhull['failures']} of {qhull['tested']} "
+            "random triangles with one-decimal coordinates in [0, 10] (of "
+            f"{qhull['trials']} drawn; those of doubled area below 1 are not tested), "
+            "`scipy.spatial.Delaunay` of the "
             "nine points (float trisection) returned a triangle whose three vertices lie on one "
             f"edge. First example: vertices {ex['vertices']}, {len(ex['simplices'])} triangles "
             f"instead of 7, degenerate (1-based, stencil order M N O D C Q B A P): "
