@@ -314,3 +314,24 @@ def test_paper_refuses_an_empty_output_name(run):
     result = run("paper", "", "--no-figures")
     assert result.returncode == 1
     assert result.stderr == "qdrefine: error: the output directory is an empty name\n"
+
+
+def test_fig09c_zero_line_is_where_the_difference_changes_sign(ctx):
+    """The zero contour was drawn on the NaN-filled map, so it also ran along the region's
+    edges where the difference is far from zero (review): every point of the drawn line
+    lies between grid values of opposite signs (or zero)."""
+    from qdrefine.paper.figures import _shaded_maps
+
+    fig = FIGURES["fig09c_mean_difference"](ctx)
+    maps = _shaded_maps(ctx)
+    diff = maps["mean 7t-qd"] - maps["mean 7t-d"]
+    xs, ys = maps["X"][0], maps["Y"][:, 0]
+    vertices = np.concatenate([p.vertices for c in fig.axes[0].collections  # the contour
+                               for p in c.get_paths() if len(p.vertices)])
+    assert len(vertices)
+    for x, y in vertices:
+        i = np.clip(np.searchsorted(ys, y) - 1, 0, len(ys) - 2)
+        j = np.clip(np.searchsorted(xs, x) - 1, 0, len(xs) - 2)
+        cell = diff[i:i + 2, j:j + 2]
+        cell = cell[np.isfinite(cell)]
+        assert cell.size and cell.min() <= 0 <= cell.max(), (x, y, cell)

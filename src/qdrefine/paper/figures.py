@@ -329,7 +329,8 @@ def fig09_mean_difference(ctx):
     lim = np.nanmax(np.abs(diff))
     im = ax.imshow(diff, origin="lower", extent=ZOOM, cmap="RdBu", aspect="equal",
                    vmin=-lim, vmax=lim)
-    ax.contour(maps["X"], maps["Y"], np.nan_to_num(diff, nan=-lim), levels=[0], colors="k",
+    # masked, not NaN-filled: a fill value drew the zero line along the region's edges too
+    ax.contour(maps["X"], maps["Y"], np.ma.masked_invalid(diff), levels=[0], colors="k",
                linewidths=1)
     fig.colorbar(im, ax=ax, shrink=0.8, label="mean min angle 7T-QD - 7T-D (deg)")
     _boundaries(ax)
