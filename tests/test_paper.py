@@ -290,6 +290,9 @@ def test_report_sentences_follow_the_numbers(ctx):
     # was written whatever the step; this context's is 1/300)
     assert "grid spacing 1/300)" in text and "grid spacing 1/1200" not in text
     assert "coordinates rounded to 1e-9)" in text and "bisected to 2e-16)" in text
+    # extrema come with bounds or not at all: Fig. 9's row quoted the grid's largest gaps,
+    # which a finer grid exceeds (review)
+    assert "grid max" not in text and "left third mean" in text
 
 
 def test_convergence_table_gives_the_largest_estimate_of_all_regions(ctx):
