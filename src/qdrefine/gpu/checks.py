@@ -1,7 +1,7 @@
-"""Device-side checks of refinement's inputs and outputs: coordinates in the range of exact
-predicates (:data:`qdrefine.predicates.COORDINATE_RANGE`), vertex indices in range; each a
-kernel pass that finds the first bad row, the message built on the host from that row
-alone."""
+"""Checks of the GPU refinement's inputs and outputs: coordinates in the range of exact
+predicates (:data:`qdrefine.predicates.COORDINATE_RANGE`), vertex indices in range (each a
+kernel pass that finds the first bad row, the message built on the host); on the host, the
+dtypes of host arrays and, where no level runs, the orientation."""
 
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ from collections.abc import Callable
 
 import numpy as np
 from numba import cuda
+from numpy.typing import NDArray
 
-from ..predicates import COORDINATE_RANGE, below_range, check_coordinates
+from ..predicates import COORDINATE_RANGE, below_range, check_coordinates, orient_signs
 from . import kernels as k
 from .numbering import THREADS, blocks
 
-__all__ = ["check_indices", "check_new_points", "check_points"]
+__all__ = ["cast_host", "check_indices", "check_new_points", "check_orientation", "check_points"]
 
 
 def check_points(points) -> None:
@@ -79,3 +80,33 @@ def _index_range(index, bounds):
         for i in range(index.shape[1]):
             cuda.atomic.min(bounds, 0, index[r, i])
             cuda.atomic.max(bounds, 1, index[r, i])
+
+
+def cast_host(host: NDArray, name: str, real: bool) -> NDArray:
+    """A host array of another dtype as ``float64`` (``real``: coordinates) or ``int64``
+    (indices, tags), refused as :class:`qdrefine.Mesh` refuses it where that would change a
+    value (a fraction, a wrapped integer) or is not a number."""
+    kind = host.dtype.kind
+    if real:
+        if kind not in "iuf":
+            raise ValueError(f"{name} must be numbers, got dtype {host.dtype}")
+        return host.astype(np.float64)
+    if kind not in "iu":
+        raise ValueError(f"{name} must hold integers, got dtype {host.dtype}")
+    if kind == "u" and host.max() > np.iinfo(np.int64).max:
+        raise ValueError(f"{name} has values beyond int64 (up to {host.max()})")
+    return host.astype(np.int64)
+
+
+def check_orientation(points: NDArray, triangles: NDArray) -> None:
+    """``ValueError`` naming the first zero-area or clockwise triangle (exact, the wording
+    of :class:`qdrefine.Mesh`)."""
+    signs = orient_signs(points, triangles.astype(np.int64))
+    bad = np.flatnonzero(signs <= 0)
+    if bad.size:
+        t = int(bad[0])
+        corners = tuple(int(v) for v in triangles[t])
+        if signs[t] == 0:
+            raise ValueError(f"triangle {t} {corners} has zero area")
+        raise ValueError(f"triangle {t} {corners} is clockwise; triangles must be "
+                         "counter-clockwise with positive area")

@@ -26,11 +26,11 @@ from ..fields import refine_point_data
 from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, check_memory, memory_needed
 from ..mesh import Mesh, index_dtype
-from ..predicates import factor_forms, orient_signs
+from ..predicates import factor_forms
 from ..schemes import Scheme, get_scheme
 from ..uniform import RefusedTriangle, check_rounding
 from . import kernels as k
-from .checks import check_indices, check_new_points, check_points
+from .checks import cast_host, check_indices, check_new_points, check_orientation, check_points
 from .numbering import THREADS, blocks, sort_edges
 
 __all__ = ["DeviceMesh", "pass_times", "refine_device", "refine_mesh", "require_gpu"]
@@ -134,7 +134,7 @@ def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: in
     check_device_memory(n, m, sch, levels, tags is not None)
     check_points(pts)
     if not levels:  # level 1 checks the orientation as it emits: here, on the host
-        _check_orientation(_host(pts), _host(tri))
+        check_orientation(_host(pts), _host(tri))
     tables = _Tables(sch)
     exact: list[int] = []
     ends: list[NDArray[np.int64]] = []
@@ -315,7 +315,7 @@ def _device(a, name: str, dtypes: tuple, columns: int | None):
     else:
         host = np.asarray(a)
         if host.dtype not in dtypes and host.size:
-            host = _cast(host, name, np.dtype(dtypes[0]).kind == "f")
+            host = cast_host(host, name, np.dtype(dtypes[0]).kind == "f")
         d = cuda.to_device(np.ascontiguousarray(host))
     if d.dtype not in dtypes:
         raise ValueError(f"{name} must have dtype {' or '.join(np.dtype(t).name for t in dtypes)}"
@@ -327,36 +327,6 @@ def _device(a, name: str, dtypes: tuple, columns: int | None):
     if not d.is_c_contiguous():
         raise ValueError(f"{name} must be C-contiguous on the device")
     return d
-
-
-def _cast(host: NDArray, name: str, real: bool) -> NDArray:
-    """A host array of another dtype as ``float64`` (``real``: coordinates) or ``int64``
-    (indices, tags), refused as :class:`qdrefine.Mesh` refuses it where that would change a
-    value (a fraction, a wrapped integer) or is not a number."""
-    kind = host.dtype.kind
-    if real:
-        if kind not in "iuf":
-            raise ValueError(f"{name} must be numbers, got dtype {host.dtype}")
-        return host.astype(np.float64)
-    if kind not in "iu":
-        raise ValueError(f"{name} must hold integers, got dtype {host.dtype}")
-    if kind == "u" and host.max() > np.iinfo(np.int64).max:
-        raise ValueError(f"{name} has values beyond int64 (up to {host.max()})")
-    return host.astype(np.int64)
-
-
-def _check_orientation(points: NDArray, triangles: NDArray) -> None:
-    """``ValueError`` naming the first zero-area or clockwise triangle (exact, the wording
-    of :class:`qdrefine.Mesh`)."""
-    signs = orient_signs(points, triangles.astype(np.int64))
-    bad = np.flatnonzero(signs <= 0)
-    if bad.size:
-        t = int(bad[0])
-        corners = tuple(int(v) for v in triangles[t])
-        if signs[t] == 0:
-            raise ValueError(f"triangle {t} {corners} has zero area")
-        raise ValueError(f"triangle {t} {corners} is clockwise; triangles must be "
-                         "counter-clockwise with positive area")
 
 
 def _dlpack_on_cuda(a) -> bool:
