@@ -121,3 +121,18 @@ def test_narrow_floats_are_interpolated_in_float64():
         assert (fine.point_data["big"] == 60000).all()
         want = fine.points[:, 0].astype(np.float32)  # one rounding of the float64 value
         assert np.array_equal(fine.point_data["x"], want)
+
+
+def test_helpers_refuse_ids_outside_the_fields():
+    """-1 took the last point or triangle silently, and k = 0 gave nothing (review)."""
+    u = {"u": np.array([1.0, 2.0])}
+    for ends, k, message in (([[0, -1]], 2, "edge_ends has id -1, outside the 2 rows"),
+                             ([[0, 5]], 2, "edge_ends has id 5"),
+                             ([[0.0, 1.0]], 2, "edge_ends must hold integers"),
+                             ([[0, 1]], 0, "k must be 1 or 2")):
+        with pytest.raises(ValueError, match=message):
+            interpolate_point_data(u, ends, k)
+    with pytest.raises(ValueError, match="parents has id -1, outside the 2 rows of cell_data"):
+        inherit_cell_data({"c": np.array([1, 2])}, [-1])
+    assert interpolate_point_data({"u": np.array([1.0, 4.0])}, [[0, 1]], 2)["u"].tolist() == \
+        [2.0, 3.0]

@@ -72,9 +72,12 @@ def interpolate_point_data(point_data: Mapping[str, ArrayLike], edge_ends: Array
     ends = np.asarray(edge_ends)
     if ends.ndim != 2 or ends.shape[1] != 2:
         raise ValueError(f"edge_ends must have shape (E, 2), got {ends.shape}")
+    if k not in (1, 2):
+        raise ValueError(f"k must be 1 or 2 new points per edge, got {k}")
     out = {}
     for name, value in point_data.items():
         v = np.asarray(value)
+        _check_ids(ends, len(v), "edge_ends", f"point_data {name!r}")
         if v.dtype.kind not in "f":
             v = v.astype(np.float64)
         a, b = v[ends[:, 0]], v[ends[:, 1]]
@@ -105,4 +108,19 @@ def inherit_cell_data(cell_data: Mapping[str, ArrayLike], parents: ArrayLike
         The coarse triangle of each child.
     """
     p = np.asarray(parents)
-    return {name: np.asarray(value)[p] for name, value in cell_data.items()}
+    out = {}
+    for name, value in cell_data.items():
+        v = np.asarray(value)
+        _check_ids(p, len(v), "parents", f"cell_data {name!r}")
+        out[name] = v[p]
+    return out
+
+
+def _check_ids(ids: NDArray, n: int, what: str, of: str) -> None:
+    """``ValueError`` unless ``ids`` are integers in ``0 .. n - 1`` (rows of ``of``): NumPy
+    reads -1 as the last row."""
+    if ids.size and ids.dtype.kind not in "iu":
+        raise ValueError(f"{what} must hold integers, got dtype {ids.dtype}")
+    if ids.size and (ids.min() < 0 or ids.max() >= n):
+        bad = ids[(ids < 0) | (ids >= n)].flat[0]
+        raise ValueError(f"{what} has id {int(bad)}, outside the {n} rows of {of}")

@@ -16,6 +16,7 @@ True
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +43,10 @@ def to_meshio(mesh: Mesh):
     ``qdrefine:transitions`` and ``qdrefine:origins``. Not every meshio writer takes all
     of that: its Gmsh 4.1 writer wants ``gmsh:dim_tags``, its Gmsh 2.2 writer fields of
     1, 3 or 9 components; :func:`qdrefine.write` to ``.msh`` keeps everything."""
-    return meshio_mesh(mesh, "gmsh:physical", names=True)
+    if mesh.edge_tags is not None and (mesh.edge_tags == 0).any():  # as qdrefine.write says
+        warnings.warn(f"<meshio.Mesh>: {int((mesh.edge_tags == 0).sum())} edges have tag 0, "
+                      "which reads back as untagged", stacklevel=2)
+    return meshio_mesh(mesh, "gmsh:physical", names=True, for_files=False)
 
 
 def from_meshio(m) -> Mesh:

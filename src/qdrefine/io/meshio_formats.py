@@ -269,14 +269,15 @@ def _rows_of_numbers(path: Path, mesh):
 
 def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
                 data: bool = True, flat: bool = False, names: bool = False,
-                path: Path | None = None):
+                path: Path | None = None, for_files: bool = True):
     """``mesh`` as a ``meshio.Mesh``: points with ``z = 0`` (``flat``: 2 coordinates), a
     ``line`` block of the tagged edges and a ``triangle`` block, the tags as the cell data
     ``tag_key`` (untagged triangles: 0), point data, the triangles' cell data (the edges'
     rows zero) and, with ``names``, the physical names as ``field_data``
     (``name -> [tag, dim]``, as meshio's Gmsh reader gives them). Cell data under one of
     :data:`TAG_NAMES` or :data:`SKIPPED_NAMES` is refused (``path``: the file, for the
-    message)."""
+    message). ``for_files``: data in the dtypes files hold (:func:`writable_data`: booleans
+    as ``uint8``, ``float16`` as ``float32``); else as it is (an object in memory)."""
     import meshio
 
     n = mesh.n_points
@@ -296,9 +297,10 @@ def meshio_mesh(mesh, tag_key: str = "gmsh:physical", *, tags: bool = True,
     point_data: dict[str, NDArray] = {}
     if data:
         point_data, tri_data = mesh_data(mesh, path, TAG_NAMES + SKIPPED_NAMES)
-        point_data = {k: writable_data(v) for k, v in point_data.items()}
+        as_held = writable_data if for_files else np.asarray
+        point_data = {k: as_held(v) for k, v in point_data.items()}
         for name, value in tri_data.items():
-            value = writable_data(value)
+            value = as_held(value)
             pad = [np.zeros((k, *value.shape[1:]), value.dtype)] if k else []
             cell_data[name] = [*pad, value]
     field_data = _field_data(mesh.physical_names or {}) if names else None
@@ -337,4 +339,12 @@ def _field_data(physical_names: dict[tuple[int, int], str]) -> dict[str, NDArray
 
 def raw_from_meshio(m, path: Path) -> RawMesh:
     """What a ``meshio.Mesh`` holds as a :class:`RawMesh` (``path`` names it in messages)."""
-    return _raw(path, _arrays(m), m.field_data)
+    try:
+        arrays = _arrays(m)
+    except (TypeError, ValueError, IndexError, KeyError, AttributeError) as exc:
+        raise ValueError(f"{path}: {_one_line(exc)}") from None  # named, as in files
+    return _raw(path, arrays, m.field_data)
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
