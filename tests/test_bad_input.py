@@ -21,8 +21,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
+from numpy.typing import NDArray
 
 import qdrefine
 from cli_runner import cli, finish, start
@@ -772,6 +773,60 @@ def test_check_predicts_the_refusals_of_refine(height, offset, scheme, seed):
         assert info.value.triangle == rows[0]
     else:
         assert qdrefine.refine(mesh, scheme).n_triangles > mesh.n_triangles
+
+
+def _crack(shift: int, along: float, offset: float, scale: float) -> tuple[NDArray, NDArray]:
+    """Two triangles: the second's vertex ``shift`` float steps (of its y) off the first's
+    edge, outside it (``shift <= 0``: on or across it; not a mesh then)."""
+    a = np.array([offset, 0.7 * offset])
+    d, n = np.array([1.0, 0.37]) * scale, np.array([0.37, -1.0]) * scale
+    v = a + along * d
+    v[1] = v[1] - shift * np.spacing(v[1])
+    points = np.array([a, a + d, a + 0.5 * d - 0.8 * n, v, v + n + 0.3 * d, v + n - 0.3 * d])
+    return points, np.array([[0, 1, 2], [3, 5, 4]])
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 12), st.floats(0.2, 0.8), st.floats(1e3, 1e9), st.floats(1e-4, 1e-2),
+       st.sampled_from(["7t-qd", "4t-le", "7t-d"]))
+@example(1, 0.375, 1e3, 1e-3, "7t-qd")  # refused: the rounded boundary crosses (review)
+@example(1, 0.625, 1e7, 1e-3, "4t-le")
+def test_refine_refuses_exactly_the_meshes_whose_rounded_boundary_crosses(
+        shift, along, offset, scale, scheme):
+    """Two parts of a mesh a float step apart: valid (exact predicates), but the rounded
+    new points of the first's edge may cross the second. ``refine`` returned that mesh,
+    which it then refused to read back (review); it now refuses the input exactly when
+    the unchecked refinement (``strict=False``) overlaps itself."""
+    from qdrefine.uniform import RefusedTriangle
+
+    points, triangles = _crack(shift, along, offset, scale)
+    try:
+        mesh = Mesh(points, triangles)
+    except ValueError:
+        assume(False)
+    loose = qdrefine.refine(mesh, scheme, strict=False)
+    if check.find(loose.points, loose.triangles).errors:
+        with pytest.raises(RefusedTriangle, match=r"^triangle 0 \(0, 1, 2\) is closer to "
+                                                  "another part of the mesh than float64"):
+            qdrefine.refine(mesh, scheme)
+    else:
+        fine = qdrefine.refine(mesh, scheme)
+        assert np.array_equal(fine.points, loose.points)
+        assert np.array_equal(fine.triangles, loose.triangles)
+
+
+def test_check_warns_about_parts_too_close_to_refine(tmp_path, run):
+    path = tmp_path / "crack.msh"
+    qdrefine.write(path, Mesh(*_crack(1, 0.375, 1e3, 1e-3)))
+    result = run("check", path, "--json")
+    assert result.returncode == 0  # a warning: the mesh is valid
+    close = [p for p in json.loads(result.stdout)["problems"] if p["kind"] == "too-close"]
+    assert close and close[0]["where"] == {"triangle": 1, "vertices": [1, 2, 3],
+                                           "scheme": "7t-qd", "file": str(path)}
+    refined = run("refine", path, tmp_path / "out.msh")
+    assert refined.returncode == 1 and "triangle 1 (1, 2, 3) is closer to another part" \
+        in refined.stderr
+    assert not (tmp_path / "out.msh").exists()
 
 
 def test_check_warns_about_what_refine_would_refuse(tmp_path, run):

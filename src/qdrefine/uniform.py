@@ -15,9 +15,10 @@ from .mesh import Mesh, edge_ids, index_dtype
 from .numbering import EdgeBuckets, bucket_points, sort_edges
 from .predicates import orient_signs, orient_signs_of_rows
 from .schemes import Scheme
+from .sweep import sweep
 
-__all__ = ["RefusedTriangle", "refine_uniform", "refine_arrays", "check_rounding", "refused",
-           "split_tagged_edges"]
+__all__ = ["RefusedTriangle", "refine_uniform", "refine_arrays", "check_rounding",
+           "check_boundary_rounding", "refused", "refused_at_boundary", "split_tagged_edges"]
 
 
 def refine_uniform(mesh: Mesh, sch: Scheme, levels: int, strict: bool = True) -> Mesh:
@@ -63,6 +64,8 @@ def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
     n = mesh.n_points
     points, triangles, buckets = refine_arrays(mesh.points, mesh.triangles, sch, strict,
                                                mesh._take_buckets())
+    if strict:  # a mesh's parts do not overlap (partition's triangles may: not checked there)
+        check_boundary_rounding(mesh.points, mesh.triangles, buckets, points, k)
     cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
     new_edges, edge_tags = None, None
     edges = buckets.edges()[0] if mesh.edges is not None or mesh.point_data else None
@@ -170,6 +173,21 @@ def refused(points: NDArray[np.float64], triangles: NDArray[np.integer], sch: Sc
     return rows[flat.any(axis=1)]
 
 
+def refused_at_boundary(points: NDArray[np.float64], triangles: NDArray[np.integer],
+                        sch: Scheme) -> RefusedTriangle | None:
+    """The refusal of :func:`check_boundary_rounding` that one uniform level by ``sch``
+    meets, or None (a level's new points are computed: a check, not a refinement path)."""
+    k = sch.stencil.per_edge
+    buckets = sort_edges(triangles, points.shape[0])
+    new_points = np.empty((points.shape[0] + k * buckets.n_edges, 2), dtype=np.float64)
+    bucket_points(points, buckets, k, new_points)
+    try:
+        check_boundary_rounding(points, triangles, buckets, new_points, k)
+    except RefusedTriangle as exc:
+        return exc
+    return None
+
+
 class RefusedTriangle(ValueError):
     """A triangle that refinement refuses: ``triangle`` (its row), ``vertices`` and
     ``reason`` (the message is ``"triangle {triangle} {vertices} {reason}"``, or names them
@@ -209,20 +227,67 @@ def split_tagged_edges(tagged: NDArray, tags: NDArray, edges: NDArray, n: int, k
     numbers them (default: the edge id): the points of edge ``g`` are ``n + rank[g] k + j``.
     """
     ids = edge_ids(edges, tagged, n)
-    a = tagged[:, 0].astype(np.int64)
-    b = tagged[:, 1].astype(np.int64)
-    r = ids if rank is None else rank[ids]
-    forward = a < b
-    chain = [a]
-    for j in range(k):
-        chain.append(np.where(forward, n + r * k + j, n + r * k + (k - 1 - j)))
-    chain.append(b)
-    pieces = np.stack([np.stack([chain[j], chain[j + 1]], axis=1) for j in range(k + 1)],
-                      axis=1)  # (K, k+1, 2)
+    pieces = _pieces(tagged, ids if rank is None else rank[ids], n, k)
     if split is None:
         return pieces.reshape(-1, 2), np.repeat(tags, k + 1)
     cut = split[ids]
-    pieces[~cut, 0, 1] = b[~cut]
+    pieces[~cut, 0, 1] = tagged[~cut, 1]
     keep = np.ones((tagged.shape[0], k + 1), dtype=bool)
     keep[~cut, 1:] = False
     return pieces[keep], np.repeat(tags, keep.sum(axis=1))
+
+
+def _pieces(ends: NDArray, rank: NDArray[np.int64], n: int, k: int) -> NDArray[np.int64]:
+    """``(K, k + 1, 2)``: each edge ``ends[i] = (a, b)`` walked from ``a`` to ``b`` through
+    its new points ``n + rank[i] k + j`` (numbered from its smaller end)."""
+    a = ends[:, 0].astype(np.int64)
+    b = ends[:, 1].astype(np.int64)
+    forward = a < b
+    chain = [a]
+    for j in range(k):
+        chain.append(np.where(forward, n + rank * k + j, n + rank * k + (k - 1 - j)))
+    chain.append(b)
+    return np.stack([np.stack([chain[j], chain[j + 1]], axis=1) for j in range(k + 1)],
+                    axis=1)
+
+
+def check_boundary_rounding(points: NDArray[np.float64], triangles: NDArray,
+                            buckets: EdgeBuckets, new_points: NDArray[np.float64],
+                            k: int) -> None:
+    """Raise :class:`RefusedTriangle` when rounding the new points on the boundary to
+    float64 made the refined boundary cross itself (or put a new point on another boundary
+    edge, or cover an area twice).
+
+    Refined exactly, the boundary would be the input's, point for point, so this can only
+    happen where two parts of the mesh come closer than the rounding of their coordinates
+    (a vertex a fraction of an ulp outside another part's edge: valid input, decided
+    exactly, but no float64 point can lie between them). One plane sweep
+    (:mod:`qdrefine.sweep`) over the ``(k + 1) B`` pieces of the ``B`` boundary edges.
+
+    Parameters
+    ----------
+    points : (N, 2) float64, triangles : (M, 3) int, buckets
+        The mesh refined and its sorted edges.
+    new_points : (N + k E, 2) float64
+        The refined mesh's points.
+    k : int
+        New points per edge.
+    """
+    rows, sides, ids = buckets.boundary_half_edges(triangles)
+    if not rows.size:
+        return
+    walked = np.stack([triangles[rows, sides], triangles[rows, (sides + 1) % 3]], axis=1)
+    pieces = _pieces(walked, ids, points.shape[0], k).reshape(-1, 2)
+    used, local = np.unique(pieces, return_inverse=True)  # the sweep's arrays: O(B), not O(N)
+    n_hang, hits, crossing, n_cov, first_cov = sweep(new_points[used], local.reshape(-1, 2),
+                                                     True, True, 1)[:5]
+    if not (n_hang or crossing[0] or n_cov):
+        return
+    piece = int(hits[0, 1]) if n_hang else int(crossing[1]) if crossing[0] else int(first_cov)
+    i = int(rows[piece // (k + 1)])
+    corners = points[triangles[i]]
+    raise RefusedTriangle(
+        i, tuple(int(v) for v in triangles[i]), "is closer to another part of the mesh than "
+        f"float64 can resolve at its coordinates (up to {np.abs(corners).max():.3g}): its new "
+        "boundary points, rounded, make the boundary cross itself; translate the mesh nearer "
+        "the origin, or separate the parts")

@@ -55,6 +55,10 @@ KINDS: dict[str, tuple[str, str]] = {
     "too-thin": ("warning", "triangles so thin for their distance from the origin that their "
                             "new points, rounded to float64, would flatten a child: "
                             "refinement refuses them (`qdrefine check` only)"),
+    "too-close": ("warning", "two parts of the mesh closer than float64 resolves at their "
+                             "coordinates: the new boundary points, rounded, would make the "
+                             "boundary cross itself, and refinement refuses the mesh "
+                             "(`qdrefine check` only)"),
     "file": ("warning", "what the reader warns about the file (an entity in several physical "
                         "groups, elements given again with another tag, a field record "
                         "ignored): what reading keeps and what it drops (`qdrefine check` only)"),

@@ -10,7 +10,7 @@ from ..check import MIN_ANGLE, Checked, Problem
 from ..check.report import Findings
 from ..io import RawMesh, check_file
 from ..schemes import get_scheme
-from ..uniform import refused
+from ..uniform import refused, refused_at_boundary
 from . import _common
 
 HELP = "check a mesh file: list every problem (exit 0 when usable, 1 when not)"
@@ -52,20 +52,30 @@ def run(args: argparse.Namespace) -> int:
             else:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         if found.ok:  # what refine would refuse: one level of the scheme, exactly
-            too_thin(raw, found, args.scheme)
+            refused_by_refine(raw, found, args.scheme)
         report = summary(args.input, found)
         print(_common.dumps(report) if args.json else format_report(report))
     return 0 if found.ok else 1
 
 
-def too_thin(raw: RawMesh, found: Checked, scheme: str) -> None:
-    """Add the ``too-thin`` warning: triangles one level of ``scheme`` refuses (numbered as
-    the other problems of the file)."""
+def refused_by_refine(raw: RawMesh, found: Checked, scheme: str) -> None:
+    """Add the warnings of what one level of ``scheme`` refuses (numbered as the other
+    problems of the file): ``too-close`` (two parts closer than float64 resolves, whose
+    rounded boundary points would cross) and ``too-thin`` (triangles whose rounded new
+    points would give a flat child)."""
     sch = get_scheme(scheme)
+    names = Findings(False, raw.base, raw.point_numbers, raw.triangle_numbers)
+    close = refused_at_boundary(found.points, found.triangles, sch)
+    if close is not None:
+        tri, verts = names.triangle(close.triangle), tuple(names.ids(close.vertices))
+        found.problems.append(raw.locate(Problem(
+            "too-close", f"triangle {tri} {verts} {close.reason.split(': its new')[0]}: "
+            f"refining by {sch.name} would round its new boundary points across the other "
+            "part, and refine refuses it (translate the mesh nearer the origin, or separate "
+            "the parts)", 1, {"triangle": tri, "vertices": list(verts), "scheme": sch.name})))
     rows = refused(found.points, found.triangles, sch)
     if not rows.size:
         return
-    names = Findings(False, raw.base, raw.point_numbers, raw.triangle_numbers)
     i = int(rows[0])
     tri, verts = names.triangle(i), tuple(names.ids(found.triangles[i]))
     found.problems.append(raw.locate(Problem(
