@@ -144,8 +144,10 @@ def _not_a_mask(path: Path, ids: NDArray[np.integer], n: int) -> None:
 
 
 def centroids(mesh: Mesh) -> NDArray[np.float64]:
-    """Centroids ``(M, 2)``."""
-    return mesh.points[mesh.triangles].mean(axis=1)
+    """Centroids ``(M, 2)``, the same bits in whatever order a triangle lists its vertices
+    (each coordinate's three values are summed in increasing order: the rounding of a sum
+    depends on its order, and a mark at a threshold did too)."""
+    return np.sort(mesh.points[mesh.triangles], axis=1).mean(axis=1)
 
 
 def mark_region(mesh: Mesh, inside: Callable[[NDArray[np.float64]], ArrayLike]
