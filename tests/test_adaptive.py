@@ -1046,3 +1046,52 @@ def test_the_history_names_are_reserved_for_cell_data():
     for name in ("qdrefine:transitions", "qdrefine:origins"):
         with pytest.raises(ValueError, match=rf"cell_data\['{name}'\]: this name is reserved"):
             mesh.replace(cell_data={name: np.zeros((mesh.n_triangles, 3), np.int64)})
+
+
+@pytest.mark.parametrize("name", ["l_shape", "plate_with_hole"])
+def test_the_boundary_kept_through_refinement_is_the_boundary(name):
+    """Local refinement cuts the input's boundary as it cuts tagged edges and keeps it on
+    its output, to check that rounding did not make it cross itself: after cycles of
+    scattered marks (transitions coarsened and refined again), two levels, uniform levels
+    and a coarsening, it is the boundary found from the triangles (an independent count
+    of each edge's triangles)."""
+    from qdrefine.boundaries import boundary_edges as kept
+    from qdrefine.topology import unique_edges
+
+    def oracle(mesh):
+        _, tri_edges, counts = unique_edges(mesh)
+        t, i = np.nonzero(counts[tri_edges] == 1)
+        rows = mesh.triangles
+        return sorted(zip(rows[t, i].tolist(), rows[t, (i + 1) % 3].tolist(), strict=True))
+
+    mesh = examples.gmsh_mesh(name)
+    for cycle in range(5):
+        marks = marking.mark_random(mesh, 0.1, seed=cycle)
+        mesh = refine(mesh, "7t-qd", marked=marks, levels=2 if cycle == 3 else 1)
+        assert "_boundary" in mesh.__dict__
+        assert sorted(map(tuple, kept(mesh).tolist())) == oracle(mesh), cycle
+    mesh = coarsen(mesh, marking.mark_random(mesh, 0.5))
+    assert sorted(map(tuple, kept(mesh).tolist())) == oracle(mesh)
+    mesh = refine(refine(mesh, "7t-qd"), "7t-qd", marked=[0, 5])
+    assert sorted(map(tuple, kept(mesh).tolist())) == oracle(mesh)
+    plain = examples.gmsh_mesh(name)  # the midpoints of 4T
+    for cycle in range(3):
+        plain = refine(plain, "4t-le", marked=marking.mark_random(plain, 0.1, seed=cycle))
+        assert sorted(map(tuple, kept(plain).tolist())) == oracle(plain), cycle
+
+
+def test_local_refinement_refuses_what_rounding_makes_cross():
+    """Two parts a float step apart: the local step returned a mesh that crossed itself
+    (review), as uniform refinement did."""
+    from qdrefine.uniform import RefusedTriangle
+
+    a = np.array([1e3, 700.0])
+    d, n = np.array([1.0, 0.37]) * 1e-3, np.array([0.37, -1.0]) * 1e-3
+    v = a + 0.375 * d
+    v[1] -= np.spacing(v[1])
+    mesh = Mesh(np.array([a, a + d, a + 0.5 * d - 0.8 * n, v, v + n - 0.3 * d,
+                          v + n + 0.3 * d]), [[0, 1, 2], [3, 4, 5]])
+    with pytest.raises(RefusedTriangle, match=r"^triangle 0 \(0, 1, 2\) is closer to another "
+                                              "part of the mesh than float64"):
+        refine(mesh, "7t-qd", marked=[0])
+    assert refine(mesh, "7t-qd", marked=[1]).n_triangles == 8  # its edges stay whole

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .boundaries import boundary_edges as kept_boundary
 from .check import duplicate_pairs, edge_scan, hanging_nodes
 from .kernels import number_edges
 from .mesh import Mesh
@@ -21,12 +22,10 @@ def unique_edges(mesh: Mesh) -> tuple[NDArray, NDArray[np.int64], NDArray[np.int
 
 
 def boundary_edges(mesh: Mesh) -> NDArray:
-    """Edges ``(B, 2)`` used by exactly one triangle, oriented as in that triangle."""
-    edges, tri_edges, counts = unique_edges(mesh)
-    once = counts[tri_edges] == 1
-    t, i = np.nonzero(once)
-    tri = mesh.triangles
-    return np.stack([tri[t, i], tri[t, (i + 1) % 3]], axis=1)
+    """Edges ``(B, 2)`` used by exactly one triangle, oriented as in that triangle (in no
+    particular order: :func:`qdrefine.boundaries.boundary_edges`, kept through
+    refinement)."""
+    return np.array(kept_boundary(mesh))
 
 
 def euler_characteristic(mesh: Mesh) -> int:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from .boundaries import first_bad_edge, keep_boundary
 from .fields import refine_point_data
 from .kernels import emit, rounding_suspects
 from .memory import check_memory
@@ -15,10 +16,10 @@ from .mesh import Mesh, edge_ids, index_dtype
 from .numbering import EdgeBuckets, bucket_points, sort_edges
 from .predicates import orient_signs, orient_signs_of_rows
 from .schemes import Scheme
-from .sweep import sweep
 
 __all__ = ["RefusedTriangle", "refine_uniform", "refine_arrays", "check_rounding",
-           "check_boundary_rounding", "refused", "refused_at_boundary", "split_tagged_edges"]
+           "check_boundary_rounding", "too_close", "refused", "refused_at_boundary",
+           "split_tagged_edges"]
 
 
 def refine_uniform(mesh: Mesh, sch: Scheme, levels: int, strict: bool = True) -> Mesh:
@@ -64,8 +65,11 @@ def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
     n = mesh.n_points
     points, triangles, buckets = refine_arrays(mesh.points, mesh.triangles, sch, strict,
                                                mesh._take_buckets())
+    boundary = None
     if strict:  # a mesh's parts do not overlap (partition's triangles may: not checked there)
-        check_boundary_rounding(mesh.points, mesh.triangles, buckets, points, k)
+        before, boundary = check_boundary_rounding(mesh.points, mesh.triangles, buckets,
+                                                   points, k)
+        keep_boundary(mesh, before)  # both kept, for a local refinement of either
     cell_tags = None if mesh.cell_tags is None else np.repeat(mesh.cell_tags, sch.n_children)
     new_edges, edge_tags = None, None
     edges = buckets.edges()[0] if mesh.edges is not None or mesh.point_data else None
@@ -76,8 +80,11 @@ def _refine_once(mesh: Mesh, sch: Scheme, strict: bool = True) -> Mesh:
     cell_data = {name: np.repeat(value, sch.n_children, axis=0)
                  for name, value in (mesh.cell_data or {}).items()}
     origins = None if mesh.origins is None else np.repeat(mesh.origins, sch.n_children, axis=0)
-    return Mesh._trusted(points, triangles, cell_tags, new_edges, edge_tags, point_data,
-                         cell_data, mesh.physical_names, origins=origins)
+    out = Mesh._trusted(points, triangles, cell_tags, new_edges, edge_tags, point_data,
+                        cell_data, mesh.physical_names, origins=origins)
+    if boundary is not None:  # for a local refinement of it
+        keep_boundary(out, boundary)
+    return out
 
 
 def check_rounding(points: NDArray[np.float64], triangles: NDArray, new_points: NDArray[np.float64],
@@ -253,16 +260,11 @@ def _pieces(ends: NDArray, rank: NDArray[np.int64], n: int, k: int) -> NDArray[n
 
 def check_boundary_rounding(points: NDArray[np.float64], triangles: NDArray,
                             buckets: EdgeBuckets, new_points: NDArray[np.float64],
-                            k: int) -> None:
+                            k: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Raise :class:`RefusedTriangle` when rounding the new points on the boundary to
-    float64 made the refined boundary cross itself (or put a new point on another boundary
-    edge, or cover an area twice).
-
-    Refined exactly, the boundary would be the input's, point for point, so this can only
-    happen where two parts of the mesh come closer than the rounding of their coordinates
-    (a vertex a fraction of an ulp outside another part's edge: valid input, decided
-    exactly, but no float64 point can lie between them). One plane sweep
-    (:mod:`qdrefine.sweep`) over the ``(k + 1) B`` pieces of the ``B`` boundary edges.
+    float64 made the refined boundary cross itself, put a new point on another boundary
+    edge or cover an area twice (:mod:`qdrefine.boundaries`); else return the boundary
+    edges, directed, of the mesh ``(B, 2)`` and of the refined mesh ``(B (k + 1), 2)``.
 
     Parameters
     ----------
@@ -274,19 +276,19 @@ def check_boundary_rounding(points: NDArray[np.float64], triangles: NDArray,
         New points per edge.
     """
     rows, sides, ids = buckets.boundary_half_edges(triangles)
-    if not rows.size:
-        return
     walked = np.stack([triangles[rows, sides], triangles[rows, (sides + 1) % 3]], axis=1)
     pieces = _pieces(walked, ids, points.shape[0], k).reshape(-1, 2)
-    used, local = np.unique(pieces, return_inverse=True)  # the sweep's arrays: O(B), not O(N)
-    n_hang, hits, crossing, n_cov, first_cov = sweep(new_points[used], local.reshape(-1, 2),
-                                                     True, True, 1)[:5]
-    if not (n_hang or crossing[0] or n_cov):
-        return
-    piece = int(hits[0, 1]) if n_hang else int(crossing[1]) if crossing[0] else int(first_cov)
-    i = int(rows[piece // (k + 1)])
+    bad = first_bad_edge(new_points, pieces, points.shape[0])
+    if bad is not None:
+        raise too_close(points, triangles, int(rows[bad // (k + 1)]))
+    return walked.astype(np.int64), pieces
+
+
+def too_close(points: NDArray[np.float64], triangles: NDArray, i: int) -> RefusedTriangle:
+    """The refusal of triangle ``i``, whose new boundary points, rounded, cross another
+    part of the mesh."""
     corners = points[triangles[i]]
-    raise RefusedTriangle(
+    return RefusedTriangle(
         i, tuple(int(v) for v in triangles[i]), "is closer to another part of the mesh than "
         f"float64 can resolve at its coordinates (up to {np.abs(corners).max():.3g}): its new "
         "boundary points, rounded, make the boundary cross itself; translate the mesh nearer "

@@ -11,11 +11,12 @@ from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
 from ..arguments import as_count
+from ..boundaries import boundary_edges, first_bad_edge, keep_boundary
 from ..jit import threads_for
 from ..memory import check_needed, local_memory_needed
 from ..mesh import Mesh
 from ..schemes import Scheme, get_scheme
-from ..uniform import check_rounding
+from ..uniform import check_rounding, too_close
 from .families import Families
 from .history import families_of, with_history
 from .output import changed_parents, split_tagged, without_points
@@ -108,6 +109,7 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
     _check_least_memory(work, mask & (fam.member < 0), sch, levels)
     parents = order  # None: the identity
     point_map = None  # input point ids -> output's, None: the identity
+    boundary = boundary_edges(mesh)  # cut as the tagged edges are: checked at the end
     out = work
     for level in range(levels):
         if not (mask.any() or fam_mask.any()):
@@ -123,6 +125,10 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
         if rows is not res.parents:  # a family's new triangles: data independent of the order
             res = replace(res, mesh=inherited(out, res.mesh, rows))
         out, fam, new_id = _finished(out, res)
+        boundary = split_tagged(boundary, np.zeros(len(boundary), np.int8), res.split_keys,
+                                res.split_points)[0]
+        if new_id is not None:
+            boundary = new_id[boundary]
         parents = res.parents if parents is None else parents[res.parents]
         if new_id is not None:
             point_map = new_id[:mesh.n_points] if point_map is None else new_id[point_map]
@@ -132,7 +138,16 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
             fam_mask[fam.member[res.inside & (fam.member >= 0)]] = True
     if out is work:
         return mesh, np.arange(mesh.n_triangles, dtype=np.int64)
-    return with_history(out, fam, _origins(origin_rows(mesh), parents, point_map)), parents
+    kept = mesh.n_points if point_map is None else int((point_map >= 0).sum())
+    bad = first_bad_edge(out.points, boundary, kept)  # points from ``kept`` on are new
+    if bad is not None:  # rounding made the boundary cross itself: the input triangle's
+        a, b = boundary[bad]
+        t = out.triangles
+        row = np.flatnonzero(((t == a) & (np.roll(t, -1, axis=1) == b)).any(axis=1))[0]
+        raise too_close(mesh.points, mesh.triangles, int(parents[row]))
+    out = with_history(out, fam, _origins(origin_rows(mesh), parents, point_map))
+    keep_boundary(out, boundary)
+    return out, parents
 
 
 def origin_rows(mesh: Mesh) -> NDArray[np.int64]:
