@@ -338,3 +338,17 @@ def test_fig09c_zero_line_is_where_the_difference_changes_sign(ctx):
         cell = diff[i:i + 2, j:j + 2]
         cell = cell[np.isfinite(cell)]
         assert cell.size and cell.min() <= 0 <= cell.max(), (x, y, cell)
+
+
+def test_the_quotations_are_read_from_claims_only(monkeypatch):
+    """The arcs were tested against values written in report.py and the circumcentres
+    written in lemmas.py, so a wrong quotation in claims went unseen (review)."""
+    from qdrefine.paper import claims, report
+
+    quotes = dict(claims.PAPER_CLAIMS)
+    assert report.curves({"claims": quotes})[-1].endswith("are among them: yes.\n")
+    quotes["arc_I_II"] = "(x - 1/4)^2 + y^2 = 1/16"
+    assert report.curves({"claims": quotes})[-1].endswith("are among them: NO.\n")
+    monkeypatch.setitem(claims.PAPER_CLAIMS, "circumcentre_MPD", ("1/5", "x/y"))
+    centre = lemma_checks()["centres"][0]
+    assert centre["paper"] == "(1/5, x/y)" and not centre["x_ok"]

@@ -50,6 +50,10 @@ PAPER_CLAIMS = {
     "arc_I_II": "(x - 1/3)^2 + y^2 = 1/9",
     "arc_II_III": "(x - 6/5)^2 + y^2 = 16/25",
     "arc_shaded": "(x - 1)^2 + y^2 = 1/3",
+    # the circumcentres of Lemma 1's MPD and Lemma 2's ADP (Sec. 3), as (x, y) expressions
+    "circumcentre_MPD": ("1/6", "(x**2 - x + y**2)/(6*y)"),
+    "circumcentre_ADP": ("(2*x**2 + 2*y**2 + 1)/6",
+                         "x*(x**2 + y**2)*(2*x**2 + 2*y**2 + 1)/(36*y)"),
 }
 
 #: Table 1 of the paper, verbatim: (region, area %, min angle, mean of min angles).

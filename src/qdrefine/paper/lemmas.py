@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 
 from ..stencil import FIXED_7T, SEVEN
+from .claims import PAPER_CLAIMS
 
 __all__ = ["lemma_checks", "has"]
 
@@ -81,9 +82,9 @@ def lemma_checks() -> dict:
         sol = sp.solve(eqs, [cx, cy], dict=True)[0]
         return sp.factor(sol[cx]), sp.factor(sol[cy])
 
-    paper_c0 = (sp.Rational(1, 6), (x**2 - x + y**2) / (6 * y))
-    paper_c1 = ((2 * x**2 + 2 * y**2 + 1) / 6,
-                x * (x**2 + y**2) * (2 * x**2 + 2 * y**2 + 1) / (36 * y))
+    symbols = {"x": x, "y": y}
+    paper_c0, paper_c1 = (tuple(sp.sympify(e, locals=symbols) for e in PAPER_CLAIMS[key])
+                          for key in ("circumcentre_MPD", "circumcentre_ADP"))
     at_m = next(t for t in lemma_1 if "M" in t)  # the paper's MPD
     at_p = next(t for t in lemma_2 if "P" in t)  # the paper's ADP
     true_c0 = circumcentre(*(pts[n] for n in at_m))
