@@ -6,7 +6,10 @@ or :data:`PAPER_TABLE1`; changing an entry here changes the verdict and its sent
 
 from __future__ import annotations
 
-__all__ = ["PAPER_CLAIMS", "PAPER_TABLE1", "TOKENS", "SHORT"]
+import re
+from fractions import Fraction
+
+__all__ = ["PAPER_CLAIMS", "PAPER_TABLE1", "TOKENS", "SHORT", "quoted_circle"]
 
 #: What the paper says (quoted; these are never used as computed results).
 PAPER_CLAIMS = {
@@ -69,3 +72,12 @@ PAPER_TABLE1 = (
 #: The paper's scheme tokens in Table 1.
 TOKENS = {"7TLE": "7t-le", "7QD": "7t-qd", "7TQD": "7t-qd", "7D": "7t-d", "7TD": "7t-d"}
 SHORT = {"7t-le": "LE", "7t-qd": "QD", "7t-d": "D"}
+
+
+def quoted_circle(text: str) -> tuple[float, float]:
+    """``(centre x, radius^2)`` of a quoted circle ``(x - a)^2 + y^2 = r2`` (``a`` and
+    ``r2`` integers or fractions)."""
+    found = re.fullmatch(r"\(x - ([\d/]+)\)\^2 \+ y\^2 = ([\d/]+)", text.strip())
+    if found is None:
+        raise ValueError(f"not a circle (x - a)^2 + y^2 = r2: {text!r}")
+    return float(Fraction(found[1])), float(Fraction(found[2]))

@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import inspect
 import platform
-import re
-from fractions import Fraction
 
 import numpy as np
 
 from .. import diagram as dg
 from ..diagram.extrema import READINGS
 from ..diagram.quadrature import ROOT_TOLERANCE
+from .claims import quoted_circle
 from .sample import region_sample
 from .table1 import our_chain, relations, row_verdict, table_region
 from .verdicts import agree, claim_rows, pct
@@ -181,22 +180,13 @@ def curves(ctx) -> list[str]:
     arcs, _ = dg.decision_arcs()
     quoted = [P[key] for key in ("arc_I_II", "arc_II_III", "arc_shaded")]
     present = all(any(abs(a.cx - c) < 1e-12 and abs(a.r2 - r2) < 1e-12 for a in arcs)
-                  for c, r2 in map(_circle, quoted))
+                  for c, r2 in map(quoted_circle, quoted))
     return ["## Boundary curves\n",
             "Circles of the decision forms in the diagram (computed from `qdrefine.schemes`): "
             + ", ".join(f"centre ({a.cx + 0.0:.6g}, 0) radius^2 {a.r2:.6g}" for a in arcs)
             + ".",
             f"The paper's arcs {P['arc_I_II']}, {P['arc_II_III']} and {P['arc_shaded']} are "
             f"among them: {'yes' if present else 'NO'}.\n"]
-
-
-def _circle(text: str) -> tuple[float, float]:
-    """``(centre x, radius^2)`` of a quoted circle ``(x - a)^2 + y^2 = r2`` (``a`` and
-    ``r2`` integers or fractions)."""
-    found = re.fullmatch(r"\(x - ([\d/]+)\)\^2 \+ y\^2 = ([\d/]+)", text.strip())
-    if found is None:
-        raise ValueError(f"not a circle (x - a)^2 + y^2 = r2: {text!r}")
-    return float(Fraction(found[1])), float(Fraction(found[2]))
 
 
 def convergence(ctx) -> list[str]:
