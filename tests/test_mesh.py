@@ -396,3 +396,22 @@ def test_bucket_scan_equals_the_edge_scan(seed, n_points):
 def test_physical_names_must_be_a_mapping():
     with pytest.raises(TypeError, match="physical_names must be a mapping"):
         Mesh([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]], physical_names=[(2, 1)])
+
+
+def test_a_pickled_or_copied_mesh_stays_read_only():
+    """After pickle or deepcopy the arrays of point_data and cell_data came back writeable
+    (review): a mesh's data could be changed under it."""
+    import copy
+    import pickle
+
+    mesh = examples.square(2)
+    mesh = mesh.replace(point_data={"u": np.arange(mesh.n_points, dtype=float)},
+                        cell_data={"c": np.arange(mesh.n_triangles)},
+                        physical_names={(2, 1): "plate"})
+    for other in (pickle.loads(pickle.dumps(mesh)), copy.deepcopy(mesh)):
+        for data in (other.point_data, other.cell_data):
+            for value in data.values():
+                with pytest.raises(ValueError, match="read-only"):
+                    value[0] = 99
+        assert dict(other.physical_names) == {(2, 1): "plate"}
+        assert not other.points.flags.writeable and not other.triangles.flags.writeable

@@ -263,7 +263,10 @@ class Mesh:
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         for k, v in state.items():
-            value = MappingProxyType(v) if isinstance(v, dict) else _readonly(v)
+            if k in ("point_data", "cell_data"):  # their arrays come back writeable
+                value = _frozen_map(v)
+            else:
+                value = MappingProxyType(v) if isinstance(v, dict) else _readonly(v)
             object.__setattr__(self, k, value)
 
     @property
