@@ -815,6 +815,22 @@ def test_refine_refuses_exactly_the_meshes_whose_rounded_boundary_crosses(
         assert np.array_equal(fine.triangles, loose.triangles)
 
 
+def test_a_rounded_point_on_another_parts_vertex_is_refused():
+    """A new point rounded exactly onto a vertex of another part: the sweep took the two
+    for one vertex (a pinch), and refine returned a mesh with duplicate points (review)."""
+    from qdrefine.uniform import RefusedTriangle
+
+    mesh = Mesh(np.array([(0.0, 0.0), (1.5, -1.0), (3.0, 3.012e-16), (1.0, 1.004e-16),
+                          (0.5, 1.0), (1.5, 1.0)]), [[0, 1, 2], [3, 5, 4]])
+    loose = qdrefine.refine(mesh, strict=False)
+    assert [p.kind for p in check.find(loose.points, loose.triangles).errors] == \
+        ["duplicate-points"]
+    for kwargs in ({}, {"marked": [0]}, {"levels": 2}):
+        with pytest.raises(RefusedTriangle, match=r"^triangle 0 \(0, 1, 2\) is closer to "):
+            qdrefine.refine(mesh, **kwargs)
+    assert qdrefine.refine(mesh, marked=[1]).n_triangles == 8  # the edge stays whole
+
+
 def test_check_warns_about_parts_too_close_to_refine(tmp_path, run):
     path = tmp_path / "crack.msh"
     qdrefine.write(path, Mesh(*_crack(1, 0.375, 1e3, 1e-3)))
@@ -834,6 +850,8 @@ def test_check_warns_about_what_refine_would_refuse(tmp_path, run):
     qdrefine.write(path, Mesh(np.array([[0, 0], [1, 0], [0.5, 1e-9]]) + 1e7, [[0, 1, 2]]))
     result = run("check", path, "--json")
     assert result.returncode == 0  # a warning: the mesh is valid
+    kinds = [p["kind"] for p in json.loads(result.stdout)["problems"]]
+    assert "too-close" not in kinds  # one part: refine refuses the thin triangle (review)
     thin = [p for p in json.loads(result.stdout)["problems"] if p["kind"] == "too-thin"]
     assert thin and thin[0]["where"]["triangle"] == 1 and thin[0]["where"]["vertices"] == [1, 2, 3]
     refined = run("refine", path, tmp_path / "out.msh")

@@ -415,10 +415,14 @@ def test_version():
     assert result.returncode == 0 and result.stdout == f"qdrefine {qdrefine.__version__}\n"
 
 
-def _info_with_stdout(stdout) -> subprocess.CompletedProcess:
-    process = subprocess.run([sys.executable, "-m", "qdrefine", "info",
-                              str(DATA / "two_regions_41.msh")],
-                             stdout=stdout, stderr=subprocess.PIPE, text=True, timeout=300)
+def _info_with_stdout(stdout, closed: bool = False) -> subprocess.CompletedProcess:
+    """``qdrefine info`` with its standard output ``stdout`` (``closed``: none at all,
+    as a shell's ``>&-`` leaves it)."""
+    command = [sys.executable, "-m", "qdrefine", "info", str(DATA / "two_regions_41.msh")]
+    if closed:  # a shell closes it (no preexec_fn: the test process has threads)
+        command = ["sh", "-c", 'exec "$@" >&-', "sh", *command]
+    process = subprocess.run(command, stdout=stdout, stderr=subprocess.PIPE, text=True,
+                             timeout=300)
     return subprocess.CompletedProcess(process.args, process.returncode, None,
                                        without_compile_note(process.stderr))
 
@@ -439,4 +443,9 @@ def test_a_closed_pipe_is_not_an_error():  # `qdrefine info x.msh | head -1`
         result = _info_with_stdout(write)
     finally:
         os.close(write)
+    assert result.returncode == 0 and result.stderr == ""
+
+
+def test_a_closed_standard_output_is_not_an_error():  # `qdrefine info x.msh >&-`
+    result = _info_with_stdout(None, closed=True)
     assert result.returncode == 0 and result.stderr == ""

@@ -46,14 +46,22 @@ def keep_boundary(mesh, edges: NDArray[np.int64]) -> None:
 
 def first_bad_edge(points: NDArray[np.float64], edges: NDArray[np.integer], new_from: int
                    ) -> int | None:
-    """The row of ``edges (B, 2)`` (a mesh's directed boundary edges) where the plane
-    sweep (:mod:`qdrefine.sweep`) finds the boundary crossing itself, a vertex inside an
-    edge or an area covered twice, of the two crossing edges the one with a new point
-    (id ``>= new_from``) if either has one; None where it finds none. The sweep runs on
-    the edges' own points (``O(B log B)``, not ``O(N)``)."""
+    """The row of ``edges (B, 2)`` (a mesh's directed boundary edges) where two of their
+    points fall on one place or the plane sweep (:mod:`qdrefine.sweep`) finds the boundary
+    crossing itself, a vertex inside an edge or an area covered twice: of two edges, the
+    one with a new point (id ``>= new_from``) if either has one; None where there is
+    none of these. The sweep runs on the edges' own points (``O(B log B)``, not ``O(N)``).
+    """
     if not len(edges):
         return None
     used, local = np.unique(edges, return_inverse=True)
+    p = points[used]
+    order = np.lexsort((p[:, 1], p[:, 0]))
+    same = np.flatnonzero((p[order[1:]] == p[order[:-1]]).all(axis=1))
+    if same.size:  # two ids at one place (a rounded point on another part's vertex): the
+        # sweep would take them for one vertex, a pinch
+        v = used[order[same[0]:same[0] + 2]].max()
+        return int(np.flatnonzero((edges == v).any(axis=1))[0])
     n_hang, hits, crossing, n_cov, first_cov = sweep(points[used], local.reshape(-1, 2),
                                                      True, True, 1)[:5]
     if n_hang:

@@ -71,10 +71,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with sigterm_as_interrupt(), compile_note(COMPILING), \
-                contextlib.redirect_stdout(_NamedStream(sys.stdout, "standard output")):
+        named = contextlib.nullcontext() if sys.stdout is None else \
+            contextlib.redirect_stdout(_NamedStream(sys.stdout, "standard output"))  # '>&-'
+        with sigterm_as_interrupt(), compile_note(COMPILING), named:
             code = int(args.handler(args))  # a kill cleans up as Ctrl-C
-            sys.stdout.flush()  # a full disk behind '>' is said here, not at exit
+            if sys.stdout is not None:
+                sys.stdout.flush()  # a full disk behind '>' is said here, not at exit
             return code
     except BrokenPipeError:  # e.g. `qdrefine info x.msh | head`: not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

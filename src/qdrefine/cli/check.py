@@ -65,16 +65,16 @@ def refused_by_refine(raw: RawMesh, found: Checked, scheme: str) -> None:
     points would give a flat child)."""
     sch = get_scheme(scheme)
     names = Findings(False, raw.base, raw.point_numbers, raw.triangle_numbers)
-    close = refused_at_boundary(found.points, found.triangles, sch)
-    if close is not None:
-        tri, verts = names.triangle(close.triangle), tuple(names.ids(close.vertices))
-        found.problems.append(raw.locate(Problem(
-            "too-close", f"triangle {tri} {verts} {close.reason.split(': its new')[0]}: "
-            f"refining by {sch.name} would round its new boundary points across the other "
-            "part, and refine refuses it (translate the mesh nearer the origin, or separate "
-            "the parts)", 1, {"triangle": tri, "vertices": list(verts), "scheme": sch.name})))
     rows = refused(found.points, found.triangles, sch)
-    if not rows.size:
+    if not rows.size:  # refine checks the thin triangles first: the boundary only then
+        close = refused_at_boundary(found.points, found.triangles, sch)
+        if close is not None:
+            tri, verts = names.triangle(close.triangle), tuple(names.ids(close.vertices))
+            found.problems.append(raw.locate(Problem(
+                "too-close", f"triangle {tri} {verts} {close.reason.split(': its new')[0]}: "
+                f"refining by {sch.name} would round its new boundary points across the other "
+                "part, and refine refuses it (translate the mesh nearer the origin, or separate "
+                "the parts)", 1, {"triangle": tri, "vertices": list(verts), "scheme": sch.name})))
         return
     i = int(rows[0])
     tri, verts = names.triangle(i), tuple(names.ids(found.triangles[i]))
