@@ -11,11 +11,13 @@ import numpy as np
 from numba import cuda
 from numpy.typing import NDArray
 
+from ..boundaries import first_bad_edge
 from ..predicates import COORDINATE_RANGE, below_range, check_coordinates, orient_signs
 from . import kernels as k
 from .numbering import THREADS, blocks
 
-__all__ = ["cast_host", "check_indices", "check_new_points", "check_orientation", "check_points"]
+__all__ = ["BoundaryCrossed", "cast_host", "check_boundary", "check_indices", "check_new_points",
+           "check_orientation", "check_points", "split_boundary"]
 
 
 def check_points(points) -> None:
@@ -110,3 +112,32 @@ def check_orientation(points: NDArray, triangles: NDArray) -> None:
             raise ValueError(f"triangle {t} {corners} has zero area")
         raise ValueError(f"triangle {t} {corners} is clockwise; triangles must be "
                          "counter-clockwise with positive area")
+
+
+class BoundaryCrossed(Exception):
+    """The rounded boundary of a level crosses itself (:mod:`qdrefine.boundaries`): the
+    caller refuses the mesh with the CPU's words."""
+
+
+def split_boundary(pieces, ed, n: int, per: int):
+    """The boundary ``pieces (B, 2)`` (device) cut at the level's new points."""
+    out = cuda.device_array((pieces.shape[0] * (per + 1), 2), dtype=np.int64)
+    if pieces.shape[0]:
+        first_bad = cuda.to_device(np.array([pieces.shape[0]], dtype=np.int64))
+        k.split_edges[blocks(pieces.shape[0]), THREADS](pieces, n, ed.starts, ed.first, ed.hi,
+                                                        per, out, first_bad)
+    return out
+
+
+def check_boundary(points, pieces) -> None:
+    """:class:`BoundaryCrossed` where the boundary ``pieces`` cross (the sweep on the host,
+    on their points only, gathered on the device)."""
+    host = pieces.copy_to_host()
+    if not host.size:
+        return
+    used, local = np.unique(host, return_inverse=True)
+    ids = cuda.to_device(used)
+    gathered = cuda.device_array((used.size, 2), dtype=np.float64)
+    k.gather_rows[blocks(used.size), THREADS](points, ids, gathered)
+    if first_bad_edge(gathered.copy_to_host(), local.reshape(-1, 2), used.size) is not None:
+        raise BoundaryCrossed

@@ -24,7 +24,7 @@ from ..predicates import SCRATCH
 from .numbering import edge_id
 from .predicates import decide_exact, decide_fast, orient_filter, orient_sign, suspect
 
-__all__ = ["new_points", "emit", "decide_rows", "emit_rows", "repeat", "split_edges",
+__all__ = ["new_points", "emit", "decide_rows", "emit_rows", "gather_rows", "repeat", "split_edges",
            "check_points"]
 
 MAX_LOCAL = 9  # own local points of a triangle: 3 corners + 3 edges x at most 2
@@ -148,6 +148,15 @@ def emit_rows(n, triangles, starts, first, hi, per_edge, frames, width, rows, la
         n_rows = frames.shape[0] // (9 * width)
         _write_children(rows[r], labels[r, 0], labels[r, 1], labels[r, 3], triangles, starts,
                         first, hi, n, per_edge, frames, n_rows, width, out)
+
+
+@cuda.jit
+def gather_rows(points, ids, out):
+    """``out = points[ids]`` for rows ``(K, 2)``."""
+    i = cuda.grid(1)
+    if i < ids.shape[0]:
+        out[i, 0] = points[ids[i], 0]
+        out[i, 1] = points[ids[i], 1]
 
 
 @cuda.jit

@@ -14,6 +14,7 @@ on the device and, only if there are any (almost never), runs
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from types import SimpleNamespace
 
 import numpy as np
@@ -22,16 +23,26 @@ from numba.core import config
 from numpy.typing import NDArray
 
 from ..arguments import as_count
+from ..boundaries import boundary_edges
 from ..fields import refine_point_data
 from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, check_memory, memory_needed
 from ..mesh import Mesh, index_dtype
 from ..predicates import factor_forms
 from ..schemes import Scheme, get_scheme
-from ..uniform import RefusedTriangle, check_rounding
+from ..uniform import RefusedTriangle, check_rounding, refine_uniform
 from . import kernels as k
-from .checks import cast_host, check_indices, check_new_points, check_orientation, check_points
+from .checks import (
+    BoundaryCrossed,
+    check_boundary,
+    check_indices,
+    check_new_points,
+    check_orientation,
+    check_points,
+    split_boundary,
+)
 from .numbering import THREADS, blocks, sort_edges
+from .transfer import as_device, to_host
 
 __all__ = ["DeviceMesh", "pass_times", "refine_device", "refine_mesh", "require_gpu"]
 
@@ -107,26 +118,30 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
 
 def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int = 1, *,
                    cell_tags=None, edges=None, edge_tags=None, strict: bool = True,
-                   edge_ends: bool = False) -> tuple[DeviceMesh, list[NDArray[np.int64]]]:
+                   edge_ends: bool = False, boundary: NDArray[np.int64] | None = None
+                   ) -> tuple[DeviceMesh, list[NDArray[np.int64]]]:
     """:func:`refine_device`; with ``edge_ends``, also each level's edges ``(E, 2) int64``
-    on the host (lower end first, in the numbering of the level's new points)."""
+    on the host (lower end first, in the numbering of the level's new points). With
+    ``boundary`` (the mesh's directed boundary edges, :mod:`qdrefine.boundaries`), each
+    level's rounded boundary is checked as on the CPU: :class:`BoundaryCrossed` if it
+    crosses itself."""
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
     require_gpu()
     like_cupy = type(points).__module__.split(".")[0] == "cupy"
-    pts = _device(points, "points", (np.float64,), 2)
-    tri = _device(triangles, "triangles", (np.int32, np.int64), 3)
+    pts = as_device(points, "points", (np.float64,), 2)
+    tri = as_device(triangles, "triangles", (np.int32, np.int64), 3)
     n, m = pts.shape[0], tri.shape[0]
     check_indices(tri, n, "triangles")
-    tags = None if cell_tags is None else _device(cell_tags, "cell_tags", (np.int64,), None)
+    tags = None if cell_tags is None else as_device(cell_tags, "cell_tags", (np.int64,), None)
     if tags is not None and tags.shape[0] != m:
         raise ValueError(f"cell_tags must have {m} entries, got {tags.shape[0]}")
     if (edges is None) != (edge_tags is None):
         raise ValueError("edges and edge_tags go together")
     tagged = etags = None
     if edges is not None:
-        tagged = _device(edges, "edges", (np.int32, np.int64), 2)
-        etags = _device(edge_tags, "edge_tags", (np.int64,), None)
+        tagged = as_device(edges, "edges", (np.int32, np.int64), 2)
+        etags = as_device(edge_tags, "edge_tags", (np.int64,), None)
         if etags.shape[0] != tagged.shape[0]:
             raise ValueError(f"edge_tags must have {tagged.shape[0]} entries, got "
                              f"{etags.shape[0]}")
@@ -134,24 +149,31 @@ def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: in
     check_device_memory(n, m, sch, levels, tags is not None)
     check_points(pts)
     if not levels:  # level 1 checks the orientation as it emits: here, on the host
-        check_orientation(_host(pts), _host(tri))
+        check_orientation(to_host(pts), to_host(tri))
     tables = _Tables(sch)
     exact: list[int] = []
     ends: list[NDArray[np.int64]] = []
     first = tri
+    pieces = None if boundary is None else cuda.to_device(np.ascontiguousarray(boundary))
     for level in range(1, levels + 1):
+        cut: list = []
         try:
             pts, tri, tags, tagged, etags, n_hard = _level(
                 pts, tri, tags, tagged, etags, tables, strict, level == 1,
-                keep=ends.append if edge_ends else None)
+                keep=ends.append if edge_ends else None,
+                numbered=None if pieces is None else partial(_cut, cut, pieces, pts.shape[0],
+                                                             tables.per_edge))
         except InputError as exc:
             raise ValueError(str(exc)) from None
         except RefusedTriangle as exc:  # named by the input triangle, as on the CPU
-            raise exc.at_input(SimpleNamespace(triangles=_host(first)), level,
+            raise exc.at_input(SimpleNamespace(triangles=to_host(first)), level,
                                sch.n_children) from None
         except ValueError as exc:
             raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
         exact.append(n_hard)
+        if pieces is not None:
+            pieces = cut[0]
+            check_boundary(pts, pieces)
     if levels:
         check_new_points(pts, n, lambda: _smallest(points))
     arrays = (pts, tri, tags, tagged, etags)
@@ -160,6 +182,10 @@ def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: in
 
         arrays = tuple(None if a is None else cupy.asarray(a) for a in arrays)
     return DeviceMesh(*arrays, exact_stage=tuple(exact)), ends
+
+
+def _cut(into: list, pieces, n: int, per: int, ed) -> None:
+    into.append(split_boundary(pieces, ed, n, per))
 
 
 def require_gpu() -> None:
@@ -180,10 +206,16 @@ def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     if not levels:  # the mesh itself, as on the CPU (its history included)
         return mesh
     check_memory(mesh, sch, levels)  # the result comes back to the host
-    out, ends = _refine_device(mesh.points, mesh.triangles, sch, levels,
-                               cell_tags=mesh.cell_tags, edges=mesh.edges,
-                               edge_tags=mesh.edge_tags, strict=strict,
-                               edge_ends=bool(mesh.point_data))
+    try:
+        out, ends = _refine_device(mesh.points, mesh.triangles, sch, levels,
+                                   cell_tags=mesh.cell_tags, edges=mesh.edges,
+                                   edge_tags=mesh.edge_tags, strict=strict,
+                                   edge_ends=bool(mesh.point_data),
+                                   boundary=boundary_edges(mesh) if strict else None)
+    except BoundaryCrossed:  # rare: the CPU's refusal, in its words (the same arithmetic)
+        refine_uniform(mesh, sch, levels, strict)
+        raise RuntimeError("the GPU found a rounded boundary crossing itself where the CPU "
+                           "did not: please report it") from None
     point_data = mesh.point_data
     for level_ends in ends:  # on the host, as the CPU does it (the same edge numbering)
         point_data = refine_point_data(point_data, level_ends, sch.stencil.per_edge)
@@ -191,7 +223,7 @@ def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     cell_data = {name: np.repeat(value, copies, axis=0)
                  for name, value in (mesh.cell_data or {}).items()}
     origins = None if mesh.origins is None else np.repeat(mesh.origins, copies, axis=0)
-    return Mesh._trusted(*(None if a is None else _host(a) for a in
+    return Mesh._trusted(*(None if a is None else to_host(a) for a in
                            (out.points, out.triangles, out.cell_tags, out.edges,
                             out.edge_tags)), point_data or None, cell_data,
                          mesh.physical_names, origins=origins)
@@ -233,16 +265,19 @@ class _Tables:
 
 
 def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: bool,
-           clock=None, keep=None):
+           clock=None, keep=None, numbered=None):
     """One uniform level on device arrays (:func:`qdrefine.refine.refine_arrays`); with
     ``check`` (the input level), a triangle that is not counter-clockwise is refused.
     ``clock(name)``, if given, is called after each pass (:func:`pass_times`);
-    ``keep(ends)``, if given, receives the level's edges on the host."""
+    ``keep(ends)``, if given, receives the level's edges on the host; ``numbered(ed)``,
+    if given, the level's :class:`~qdrefine.gpu.numbering.DeviceEdges`."""
     n, m = pts.shape[0], tri.shape[0]
     per = tab.per_edge
     ed = sort_edges(tri, n)
     if keep is not None:
         keep(ed.ends_host())
+    if numbered is not None:
+        numbered(ed)
     if clock:
         clock("edge numbering")
     n_new = n + per * ed.n_edges
@@ -271,7 +306,7 @@ def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: boo
     if clock:
         clock("decision and emission")
     if strict and n_suspect:
-        check_rounding(_host(pts), _host(tri), _host(new_pts), _host(children), per)
+        check_rounding(to_host(pts), to_host(tri), to_host(new_pts), to_host(children), per)
         if clock:
             clock("rounding check on the host")
     new_tags = new_edges = new_etags = None
@@ -294,52 +329,6 @@ def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: boo
     return new_pts, children, new_tags, new_edges, new_etags, n_hard
 
 
-# ----------------------------------------------------------------------------------------
-# arrays in and out
-
-
-def _device(a, name: str, dtypes: tuple, columns: int | None):
-    """``a`` as a C-contiguous numba device array (no copy when it is on the device
-    already), checked for dtype and shape."""
-    if hasattr(a, "copy_to_host") and hasattr(a, "shape"):  # a numba device array
-        d = a
-    elif hasattr(a, "__cuda_array_interface__"):
-        d = cuda.as_cuda_array(a)
-    elif hasattr(a, "__dlpack__") and _dlpack_on_cuda(a):
-        try:
-            import cupy
-        except ImportError:
-            raise ValueError(f"{name}: reading a CUDA DLPack array needs CuPy "
-                             "(pip install 'qdrefine[gpu]')") from None
-        d = cuda.as_cuda_array(cupy.from_dlpack(a))
-    else:
-        host = np.asarray(a)
-        if host.dtype not in dtypes and host.size:
-            host = cast_host(host, name, np.dtype(dtypes[0]).kind == "f")
-        d = cuda.to_device(np.ascontiguousarray(host))
-    if d.dtype not in dtypes:
-        raise ValueError(f"{name} must have dtype {' or '.join(np.dtype(t).name for t in dtypes)}"
-                         f" on the device, got {d.dtype}")
-    want = 1 if columns is None else 2
-    if len(d.shape) != want or (columns is not None and d.shape[1] != columns):
-        shape = "(n,)" if columns is None else f"(n, {columns})"
-        raise ValueError(f"{name} must have shape {shape}, got {tuple(d.shape)}")
-    if not d.is_c_contiguous():
-        raise ValueError(f"{name} must be C-contiguous on the device")
-    return d
-
-
-def _dlpack_on_cuda(a) -> bool:
-    try:
-        return int(a.__dlpack_device__()[0]) in (2, 3, 13)  # kDLCUDA, pinned, managed
-    except (AttributeError, TypeError, ValueError):
-        return False
-
-
-def _host(a) -> NDArray:
-    return a.copy_to_host() if hasattr(a, "copy_to_host") else np.asarray(a.get())
-
-
 def pass_times(points, triangles, scheme: str | Scheme = "7t-qd", strict: bool = True
                ) -> dict[str, float]:
     """Seconds of each pass of one level of :func:`refine_device` on device arrays (the
@@ -347,8 +336,8 @@ def pass_times(points, triangles, scheme: str | Scheme = "7t-qd", strict: bool =
     import time
 
     require_gpu()
-    pts = _device(points, "points", (np.float64,), 2)
-    tri = _device(triangles, "triangles", (np.int32, np.int64), 3)
+    pts = as_device(points, "points", (np.float64,), 2)
+    tri = as_device(triangles, "triangles", (np.int32, np.int64), 3)
     times: dict[str, float] = {}
     cuda.synchronize()
     last = [time.perf_counter()]
@@ -380,5 +369,5 @@ def _refuse_misoriented(tri, rows: NDArray, labels: NDArray) -> None:
 def _smallest(points) -> float:
     """The smallest nonzero coordinate magnitude of the input ``points`` (host or device
     array), for a message."""
-    a = np.abs(_host(_device(points, "points", (np.float64,), 2)))
+    a = np.abs(to_host(as_device(points, "points", (np.float64,), 2)))
     return float(np.min(a, where=a > 0, initial=np.inf))
