@@ -50,20 +50,16 @@ def first_bad_edge(points: NDArray[np.float64], edges: NDArray[np.integer], new_
     points fall on one place or the plane sweep (:mod:`qdrefine.sweep`) finds the boundary
     crossing itself, a vertex inside an edge or an area covered twice: of two edges, the
     one with a new point (id ``>= new_from``) if either has one; None where there is
-    none of these. The sweep runs on the edges' own points (``O(B log B)``, not ``O(N)``).
+    none of these (``O(B log B)`` and a pass over a mask of the ``N`` points).
     """
     if not len(edges):
         return None
-    used, local = np.unique(edges, return_inverse=True)
-    p = points[used]
-    order = np.lexsort((p[:, 1], p[:, 0]))
-    same = np.flatnonzero((p[order[1:]] == p[order[:-1]]).all(axis=1))
-    if same.size:  # two ids at one place (a rounded point on another part's vertex): the
-        # sweep would take them for one vertex, a pinch
-        v = used[order[same[0]:same[0] + 2]].max()
+    pair: list[int] = []
+    n_hang, hits, crossing, n_cov, first_cov = sweep(points, edges, True, True, 1,
+                                                     same_place=pair)[:5]
+    if pair:  # two ids at one place (a rounded point on another part's vertex), which the
+        v = max(pair)  # sweep took for one vertex, a pinch
         return int(np.flatnonzero((edges == v).any(axis=1))[0])
-    n_hang, hits, crossing, n_cov, first_cov = sweep(points[used], local.reshape(-1, 2),
-                                                     True, True, 1)[:5]
     if n_hang:
         return int(hits[0, 1])
     if crossing[0]:

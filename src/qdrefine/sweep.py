@@ -53,7 +53,7 @@ NEAR = 1e-12
 
 
 def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool,
-          stop_first: bool, cap: int = 64) -> tuple:
+          stop_first: bool, cap: int = 64, same_place: list[int] | None = None) -> tuple:
     """Run the sweep over the directed boundary edges ``bedges (B, 2)`` (each as walked by
     its triangle, counter-clockwise) of ``points (N, 2)``.
 
@@ -66,6 +66,9 @@ def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool
         Return at the first hanging node or doubly covered region too (validation).
     cap : int
         Instances kept of hanging nodes (all are counted).
+    same_place : list, optional
+        Receives the first two distinct vertices at one place, if any (the sweep takes
+        them for one vertex).
 
     Returns
     -------
@@ -104,6 +107,9 @@ def sweep(points: NDArray[np.float64], bedges: NDArray[np.integer], covers: bool
     xs, ys = xy.real[order], xy.imag[order]
     new = np.ones(len(order), dtype=bool)
     new[1:] = (xs[1:] != xs[:-1]) | (ys[1:] != ys[:-1])
+    if same_place is not None and not new.all():
+        i = int(np.flatnonzero(~new)[0])
+        same_place.extend(int(v) for v in verts[order[i - 1:i + 1]])
     rank_sorted = np.cumsum(new) - 1
     rank = np.empty(len(p) if len(p) else 1, dtype=np.int64)
     rank[verts[order]] = rank_sorted
