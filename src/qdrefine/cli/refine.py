@@ -112,6 +112,8 @@ def _uniform(mesh: Mesh, args: argparse.Namespace, progress: _common.Progress,
                 exc = exc.numbered(int(raw.triangle_numbers[exc.triangle]),
                                    tuple(int(raw.point_numbers[v]) for v in exc.vertices))
             raise exc from None
+    if not levels:
+        return mesh, f"{_common.counted(n0, 'triangle')} copied, 0 levels"
     return mesh, (f"{_common.counted(n0, 'triangle')} refined by {args.scheme}, "
                   f"{_common.counted(levels, 'level')}")
 
