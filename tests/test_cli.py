@@ -449,3 +449,14 @@ def test_a_closed_pipe_is_not_an_error():  # `qdrefine info x.msh | head -1`
 def test_a_closed_standard_output_is_not_an_error():  # `qdrefine info x.msh >&-`
     result = _info_with_stdout(None, closed=True)
     assert result.returncode == 0 and result.stderr == ""
+
+
+def test_reports_say_what_was_done(tmp_path, run):
+    """Newcomer walkthrough: '--levels 0' said the triangles were refined, and the quality
+    report read as if the angles equalled 1e-06 degrees."""
+    mesh = tmp_path / "m.msh"
+    qdrefine.write(mesh, examples.square(2))
+    copied = run("refine", mesh, tmp_path / "o.msh", "--levels", "0")
+    assert copied.returncode == 0 and "(8 triangles copied, 0 levels;" in copied.stdout
+    report = run("quality", mesh)
+    assert "(two smallest angles equal within 1e-06 deg)" in report.stdout
