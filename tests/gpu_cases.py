@@ -334,4 +334,15 @@ def test_a_rounded_boundary_that_crosses_itself_is_refused_as_on_the_cpu():
             assert isinstance(cpu, str) and "closer to another part" in cpu
             assert gpu == cpu
     apart = Mesh(crack.points + np.array([[0, 0]] * 3 + [[0, -1e-4]] * 3), crack.triangles)
-    assert_identical(refine(apart, "7t-qd", 2), refine_mesh(apart, "7t-qd", 2))
+    cpu, gpu = refine(apart, "7t-qd", 2), refine_mesh(apart, "7t-qd", 2)
+    assert_identical(cpu, gpu)
+    # the output keeps its boundary, as on the CPU (no sort of its edges on the next call)
+    from qdrefine.boundaries import boundary_edges
+    from qdrefine.topology import unique_edges
+
+    kept = sorted(map(tuple, gpu.__dict__["_boundary"].tolist()))
+    _, tri_edges, counts = unique_edges(gpu)
+    t, i = np.nonzero(counts[tri_edges] == 1)
+    assert kept == sorted(zip(gpu.triangles[t, i].tolist(),
+                              gpu.triangles[t, (i + 1) % 3].tolist(), strict=True))
+    assert boundary_edges(gpu) is gpu.__dict__["_boundary"]

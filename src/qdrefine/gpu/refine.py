@@ -23,7 +23,7 @@ from numba.core import config
 from numpy.typing import NDArray
 
 from ..arguments import as_count
-from ..boundaries import boundary_edges
+from ..boundaries import boundary_edges, keep_boundary
 from ..fields import refine_point_data
 from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, check_memory, memory_needed
@@ -118,13 +118,14 @@ def refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int
 
 def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: int = 1, *,
                    cell_tags=None, edges=None, edge_tags=None, strict: bool = True,
-                   edge_ends: bool = False, boundary: NDArray[np.int64] | None = None
+                   edge_ends: bool = False, boundary: NDArray[np.int64] | None = None,
+                   refined_boundary: list | None = None
                    ) -> tuple[DeviceMesh, list[NDArray[np.int64]]]:
     """:func:`refine_device`; with ``edge_ends``, also each level's edges ``(E, 2) int64``
     on the host (lower end first, in the numbering of the level's new points). With
     ``boundary`` (the mesh's directed boundary edges, :mod:`qdrefine.boundaries`), each
     level's rounded boundary is checked as on the CPU: :class:`BoundaryCrossed` if it
-    crosses itself."""
+    crosses itself; ``refined_boundary``, if given, receives the output's (host)."""
     sch = get_scheme(scheme)
     levels = as_count(levels, "levels")
     require_gpu()
@@ -176,6 +177,8 @@ def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: in
             check_boundary(pts, pieces)
     if levels:
         check_new_points(pts, n, lambda: _smallest(points))
+    if pieces is not None and refined_boundary is not None:
+        refined_boundary.append(pieces.copy_to_host())
     arrays = (pts, tri, tags, tagged, etags)
     if like_cupy:
         import cupy
@@ -206,12 +209,14 @@ def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     if not levels:  # the mesh itself, as on the CPU (its history included)
         return mesh
     check_memory(mesh, sch, levels)  # the result comes back to the host
+    refined: list = []  # the output's boundary, kept on it as on the CPU
     try:
         out, ends = _refine_device(mesh.points, mesh.triangles, sch, levels,
                                    cell_tags=mesh.cell_tags, edges=mesh.edges,
                                    edge_tags=mesh.edge_tags, strict=strict,
                                    edge_ends=bool(mesh.point_data),
-                                   boundary=boundary_edges(mesh) if strict else None)
+                                   boundary=boundary_edges(mesh) if strict else None,
+                                   refined_boundary=refined)
     except BoundaryCrossed:  # rare: the CPU's refusal, in its words (the same arithmetic)
         refine_uniform(mesh, sch, levels, strict)
         raise RuntimeError("the GPU found a rounded boundary crossing itself where the CPU "
@@ -223,10 +228,13 @@ def refine_mesh(mesh: Mesh, scheme: str | Scheme = "7t-qd", levels: int = 1,
     cell_data = {name: np.repeat(value, copies, axis=0)
                  for name, value in (mesh.cell_data or {}).items()}
     origins = None if mesh.origins is None else np.repeat(mesh.origins, copies, axis=0)
-    return Mesh._trusted(*(None if a is None else to_host(a) for a in
+    fine = Mesh._trusted(*(None if a is None else to_host(a) for a in
                            (out.points, out.triangles, out.cell_tags, out.edges,
                             out.edge_tags)), point_data or None, cell_data,
                          mesh.physical_names, origins=origins)
+    if refined:
+        keep_boundary(fine, refined[0])
+    return fine
 
 
 def check_device_memory(n_points: int, n_triangles: int, scheme: Scheme, levels: int,
