@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshes import jittered_grid
+from meshes import crack, jittered_grid
 from qdrefine import Mesh, examples, read, refine, scheme_names
 from qdrefine.gpu import refine_device, refine_mesh
 from qdrefine.gpu.numbering import exclusive_scan
@@ -319,21 +319,16 @@ def test_a_rounded_boundary_that_crosses_itself_is_refused_as_on_the_cpu():
     """Two parts a float step apart: the CPU refuses the mesh whose rounded new boundary
     points cross the other part; the GPU returned it (review). Both levels, both kinds (a
     point across an edge, a point onto a vertex), and a mesh that refines on both."""
-    a = np.array([1e3, 700.0])
-    d, n = np.array([1.0, 0.37]) * 1e-3, np.array([0.37, -1.0]) * 1e-3
-    v = a + 0.375 * d
-    v[1] -= np.spacing(v[1])
-    crack = Mesh(np.array([a, a + d, a + 0.5 * d - 0.8 * n, v, v + n - 0.3 * d,
-                           v + n + 0.3 * d]), [[0, 1, 2], [3, 4, 5]])
+    cracked = Mesh(*crack(1, 0.375, 1e3, 1e-3))
     onto = Mesh(np.array([(0.0, 0.0), (1.5, -1.0), (3.0, 3.012e-16), (1.0, 1.004e-16),
                           (0.5, 1.0), (1.5, 1.0)]), [[0, 1, 2], [3, 5, 4]])
-    for mesh in (crack, onto):
+    for mesh in (cracked, onto):
         for levels in (1, 2):
             cpu = outcome(lambda m=mesh, lv=levels: refine(m, "7t-qd", lv))
             gpu = outcome(lambda m=mesh, lv=levels: refine_mesh(m, "7t-qd", lv))
             assert isinstance(cpu, str) and "closer to another part" in cpu
             assert gpu == cpu
-    apart = Mesh(crack.points + np.array([[0, 0]] * 3 + [[0, -1e-4]] * 3), crack.triangles)
+    apart = Mesh(cracked.points + np.array([[0, 0]] * 3 + [[0, -1e-4]] * 3), cracked.triangles)
     cpu, gpu = refine(apart, "7t-qd", 2), refine_mesh(apart, "7t-qd", 2)
     assert_identical(cpu, gpu)
     # the output keeps its boundary, as on the CPU (no sort of its edges on the next call)

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshes import jittered_grid
+from meshes import crack, jittered_grid
 from oracle import exact, orient
 from qdrefine import (
     Mesh,
@@ -1085,12 +1085,7 @@ def test_local_refinement_refuses_what_rounding_makes_cross():
     (review), as uniform refinement did."""
     from qdrefine.uniform import RefusedTriangle
 
-    a = np.array([1e3, 700.0])
-    d, n = np.array([1.0, 0.37]) * 1e-3, np.array([0.37, -1.0]) * 1e-3
-    v = a + 0.375 * d
-    v[1] -= np.spacing(v[1])
-    mesh = Mesh(np.array([a, a + d, a + 0.5 * d - 0.8 * n, v, v + n - 0.3 * d,
-                          v + n + 0.3 * d]), [[0, 1, 2], [3, 4, 5]])
+    mesh = Mesh(*crack(1, 0.375, 1e3, 1e-3))
     with pytest.raises(RefusedTriangle, match=r"^triangle 0 \(0, 1, 2\) is closer to another "
                                               "part of the mesh than float64"):
         refine(mesh, "7t-qd", marked=[0])

@@ -23,11 +23,10 @@ import numpy as np
 import pytest
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
-from numpy.typing import NDArray
 
 import qdrefine
 from cli_runner import cli, finish, start
-from meshes import DATA
+from meshes import DATA, crack
 from qdrefine import Mesh, check, examples
 from qdrefine.memory import MEMORY_LIMIT_VARIABLE, memory_needed
 
@@ -775,17 +774,6 @@ def test_check_predicts_the_refusals_of_refine(height, offset, scheme, seed):
         assert qdrefine.refine(mesh, scheme).n_triangles > mesh.n_triangles
 
 
-def _crack(shift: int, along: float, offset: float, scale: float) -> tuple[NDArray, NDArray]:
-    """Two triangles: the second's vertex ``shift`` float steps (of its y) off the first's
-    edge, outside it (``shift <= 0``: on or across it; not a mesh then)."""
-    a = np.array([offset, 0.7 * offset])
-    d, n = np.array([1.0, 0.37]) * scale, np.array([0.37, -1.0]) * scale
-    v = a + along * d
-    v[1] = v[1] - shift * np.spacing(v[1])
-    points = np.array([a, a + d, a + 0.5 * d - 0.8 * n, v, v + n + 0.3 * d, v + n - 0.3 * d])
-    return points, np.array([[0, 1, 2], [3, 5, 4]])
-
-
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 12), st.floats(0.2, 0.8), st.floats(1e3, 1e9), st.floats(1e-4, 1e-2),
        st.sampled_from(["7t-qd", "4t-le", "7t-d"]))
@@ -799,7 +787,7 @@ def test_refine_refuses_exactly_the_meshes_whose_rounded_boundary_crosses(
     the unchecked refinement (``strict=False``) overlaps itself."""
     from qdrefine.uniform import RefusedTriangle
 
-    points, triangles = _crack(shift, along, offset, scale)
+    points, triangles = crack(shift, along, offset, scale)
     try:
         mesh = Mesh(points, triangles)
     except ValueError:
@@ -833,7 +821,7 @@ def test_a_rounded_point_on_another_parts_vertex_is_refused():
 
 def test_check_warns_about_parts_too_close_to_refine(tmp_path, run):
     path = tmp_path / "crack.msh"
-    qdrefine.write(path, Mesh(*_crack(1, 0.375, 1e3, 1e-3)))
+    qdrefine.write(path, Mesh(*crack(1, 0.375, 1e3, 1e-3)))
     result = run("check", path, "--json")
     assert result.returncode == 0  # a warning: the mesh is valid
     close = [p for p in json.loads(result.stdout)["problems"] if p["kind"] == "too-close"]
