@@ -1,7 +1,9 @@
 """Checks of the GPU refinement's inputs and outputs: coordinates in the range of exact
 predicates (:data:`qdrefine.predicates.COORDINATE_RANGE`), vertex indices in range (each a
-kernel pass that finds the first bad row, the message built on the host); on the host, the
-dtypes of host arrays and, where no level runs, the orientation."""
+kernel pass that finds the first bad row, the message built on the host); the rounded
+boundary of each level (cut on the device, swept on the host over its points only,
+:mod:`qdrefine.boundaries`); on the host, the dtypes of host arrays and, where no level
+runs, the orientation."""
 
 from __future__ import annotations
 
