@@ -30,9 +30,7 @@ def boundary_edges(mesh) -> NDArray[np.int64]:
     if kept is not None and not (mesh.points.flags.writeable or mesh.triangles.flags.writeable):
         return kept
     buckets = mesh.__dict__.get("_buckets") or sort_edges(mesh.triangles, mesh.n_points)
-    t = mesh.triangles
-    rows, sides, _ = buckets.boundary_half_edges(t)
-    edges = np.stack([t[rows, sides], t[rows, (sides + 1) % 3]], axis=1).astype(np.int64)
+    edges = buckets.boundary_half_edges(mesh.triangles)[1]
     keep_boundary(mesh, edges)
     return edges
 

@@ -100,16 +100,17 @@ class EdgeBuckets:
 
     def boundary_half_edges(self, triangles: NDArray[np.integer]
                             ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-        """The half-edges of ``triangles`` on no other triangle (the boundary, each
-        walked as its triangle walks it): rows ``(B,)``, sides ``(B,)`` (edge ``(v_i,
-        v_{i+1})`` of the row) and global edge ids ``(B,)``, in row order."""
+        """The half-edges of ``triangles`` on no other triangle (the boundary), in row
+        order: their rows ``(B,)``, their ends ``(B, 2) int64`` as the row walks them and
+        their global edge ids ``(B,)``."""
         flags = np.empty(self.local.shape, dtype=np.bool_)
         with threads_for(self.local.shape[0]):
             _on_boundary(triangles, self.local, self.starts, self.shift, self.mult, flags)
         rows, sides = np.divmod(np.flatnonzero(flags.ravel()), 3)  # 20x np.nonzero's speed
-        ends = np.minimum(triangles[rows, sides], triangles[rows, (sides + 1) % 3])
-        ids = self.first[ends.astype(np.int64) >> self.shift] + self.local[rows, sides]
-        return rows.astype(np.int64), sides.astype(np.int64), ids
+        walked = np.stack([triangles[rows, sides], triangles[rows, (sides + 1) % 3]],
+                          axis=1).astype(np.int64)
+        ids = self.first[walked.min(axis=1) >> self.shift] + self.local[rows, sides]
+        return rows.astype(np.int64), walked, ids
 
 
 def number_edges(triangles: NDArray[np.integer], n_points: int

@@ -275,13 +275,12 @@ def check_boundary_rounding(points: NDArray[np.float64], triangles: NDArray,
     k : int
         New points per edge.
     """
-    rows, sides, ids = buckets.boundary_half_edges(triangles)
-    walked = np.stack([triangles[rows, sides], triangles[rows, (sides + 1) % 3]], axis=1)
+    rows, walked, ids = buckets.boundary_half_edges(triangles)
     pieces = _pieces(walked, ids, points.shape[0], k).reshape(-1, 2)
     bad = first_bad_edge(new_points, pieces, points.shape[0])
     if bad is not None:
         raise too_close(points, triangles, int(rows[bad // (k + 1)]))
-    return walked.astype(np.int64), pieces
+    return walked, pieces
 
 
 def too_close(points: NDArray[np.float64], triangles: NDArray, i: int) -> RefusedTriangle:

@@ -6,6 +6,8 @@ import argparse
 import warnings
 from typing import Any
 
+import numpy as np
+
 from ..check import MIN_ANGLE, Checked, Problem
 from ..check.report import Findings
 from ..io import RawMesh, check_file
@@ -70,11 +72,13 @@ def refused_by_refine(raw: RawMesh, found: Checked, scheme: str) -> None:
         close = refused_at_boundary(found.points, found.triangles, sch)
         if close is not None:
             tri, verts = names.triangle(close.triangle), tuple(names.ids(close.vertices))
+            scale = np.abs(found.points[found.triangles[close.triangle]]).max()
             found.problems.append(raw.locate(Problem(
-                "too-close", f"triangle {tri} {verts} {close.reason.split(': its new')[0]}: "
-                f"refining by {sch.name} would round its new boundary points across the other "
-                "part, and refine refuses it (translate the mesh nearer the origin, or separate "
-                "the parts)", 1, {"triangle": tri, "vertices": list(verts), "scheme": sch.name})))
+                "too-close", f"triangle {tri} {verts} is closer to another part of the mesh "
+                f"than float64 can resolve at its coordinates (up to {scale:.3g}): refining by "
+                f"{sch.name} would round its new boundary points across the other part, and "
+                "refine refuses it (translate the mesh nearer the origin, or separate the "
+                "parts)", 1, {"triangle": tri, "vertices": list(verts), "scheme": sch.name})))
         return
     i = int(rows[0])
     tri, verts = names.triangle(i), tuple(names.ids(found.triangles[i]))
