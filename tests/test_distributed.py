@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import zarr
 
-from meshes import jittered_grid
+from meshes import crack, jittered_grid
 from qdrefine import Mesh, examples, refine, store
 from qdrefine.distributed import ClusterError, local_client, min_worker_memory, refine_store
 from qdrefine.distributed import cluster as qd_cluster
@@ -210,6 +210,60 @@ def test_a_needle_far_from_the_origin_is_refused_as_in_memory(tmp_path, client):
                                          r"its distance from the origin"):
         refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", client=client)
     assert leftovers(tmp_path) == ["in.zarr"]
+
+
+def test_a_refusal_at_the_second_level_names_the_source_as_in_memory(tmp_path, client):
+    """Named the temporary store of level 1 (gone by then) and a triangle of it."""
+    needle = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 3.5e-9], [0.5, -1.0]]) + 1e7
+    mesh = Mesh(needle, [[0, 1, 2], [0, 3, 1]])
+    refine(mesh)
+    with pytest.raises(ValueError) as exc:
+        refine(mesh, levels=2)
+    expected = str(exc.value).split(" is too thin")[0]
+    assert "cannot be refined 2 levels: its descendant" in expected
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=3)
+    with pytest.raises(ValueError) as info:
+        refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", levels=2, client=client)
+    assert str(info.value).startswith(f"{tmp_path / 'in.zarr'}: {expected} is too thin")
+    assert leftovers(tmp_path) == ["in.zarr"]
+
+
+@pytest.mark.parametrize("direct", [True, False])
+@pytest.mark.parametrize(("scheme", "levels", "along", "offset"), [
+    ("7t-qd", 1, 0.375, 1e3),  # refused at the first level
+    ("7t-qd", 2, 0.5, 1e3),  # at the second only
+    ("4t-le", 1, 0.625, 1e7),  # refused
+    ("7t-qd", 2, 0.625, 1e5),  # accepted
+])
+def test_parts_too_close_for_float64_are_refused_as_in_memory(tmp_path, client, monkeypatch,
+                                                              direct, scheme, levels, along,
+                                                              offset):
+    """Two parts a float step apart inside a grid cut in chunks of 7: the rounded new points
+    of one part's boundary cross the other. The store was refined without a check (and
+    the output overlapped itself); now it refuses the same triangle as in memory."""
+    from qdrefine.distributed import level
+    from qdrefine.uniform import RefusedTriangle
+
+    if not direct:
+        monkeypatch.setattr(level, "DIRECT_PIECES", 0)
+    grid = jittered_grid(6, seed=3)
+    points, triangles = crack(1, along, offset, 1e-3)
+    mesh = Mesh(np.concatenate([grid.points, points]),
+                np.concatenate([grid.triangles[:30], triangles + grid.n_points,
+                                grid.triangles[30:]]))
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=7)
+    try:
+        refine(mesh, scheme, levels)
+    except RefusedTriangle as exc:
+        with pytest.raises(ValueError) as info:
+            refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", scheme, levels,
+                         client=client)
+        assert str(info.value) == f"{tmp_path / 'in.zarr'}: {exc}"
+        assert leftovers(tmp_path) == ["in.zarr"]
+    else:
+        refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", scheme, levels,
+                     client=client)
+        assert_identical(mesh, scheme, levels, store.to_mesh(tmp_path / "out.zarr"))
 
 
 def test_errors_before_any_work(tmp_path, client):

@@ -234,7 +234,7 @@ def split_tagged_edges(tagged: NDArray, tags: NDArray, edges: NDArray, n: int, k
     numbers them (default: the edge id): the points of edge ``g`` are ``n + rank[g] k + j``.
     """
     ids = edge_ids(edges, tagged, n)
-    pieces = _pieces(tagged, ids if rank is None else rank[ids], n, k)
+    pieces = edge_pieces(tagged, ids if rank is None else rank[ids], n, k)
     if split is None:
         return pieces.reshape(-1, 2), np.repeat(tags, k + 1)
     cut = split[ids]
@@ -244,7 +244,7 @@ def split_tagged_edges(tagged: NDArray, tags: NDArray, edges: NDArray, n: int, k
     return pieces[keep], np.repeat(tags, keep.sum(axis=1))
 
 
-def _pieces(ends: NDArray, rank: NDArray[np.int64], n: int, k: int) -> NDArray[np.int64]:
+def edge_pieces(ends: NDArray, rank: NDArray[np.int64], n: int, k: int) -> NDArray[np.int64]:
     """``(K, k + 1, 2)``: each edge ``ends[i] = (a, b)`` walked from ``a`` to ``b`` through
     its new points ``n + rank[i] k + j`` (numbered from its smaller end)."""
     a = ends[:, 0].astype(np.int64)
@@ -276,7 +276,7 @@ def check_boundary_rounding(points: NDArray[np.float64], triangles: NDArray,
         New points per edge.
     """
     rows, walked, ids = buckets.boundary_half_edges(triangles)
-    pieces = _pieces(walked, ids, points.shape[0], k).reshape(-1, 2)
+    pieces = edge_pieces(walked, ids, points.shape[0], k).reshape(-1, 2)
     bad = first_bad_edge(new_points, pieces, points.shape[0])
     if bad is not None:
         raise too_close(points, triangles, int(rows[bad // (k + 1)]))
@@ -286,9 +286,13 @@ def check_boundary_rounding(points: NDArray[np.float64], triangles: NDArray,
 def too_close(points: NDArray[np.float64], triangles: NDArray, i: int) -> RefusedTriangle:
     """The refusal of triangle ``i``, whose new boundary points, rounded, cross another
     part of the mesh."""
-    corners = points[triangles[i]]
-    return RefusedTriangle(
-        i, tuple(int(v) for v in triangles[i]), "is closer to another part of the mesh than "
-        f"float64 can resolve at its coordinates (up to {np.abs(corners).max():.3g}): its new "
-        "boundary points, rounded, make the boundary cross itself; translate the mesh nearer "
-        "the origin, or separate the parts")
+    return RefusedTriangle(i, tuple(int(v) for v in triangles[i]),
+                           too_close_reason(points[triangles[i]]))
+
+
+def too_close_reason(corners: NDArray[np.float64]) -> str:
+    """Why a triangle with corners ``(3, 2)`` is refused by :func:`too_close`."""
+    return ("is closer to another part of the mesh than float64 can resolve at its "
+            f"coordinates (up to {np.abs(corners).max():.3g}): its new boundary points, "
+            "rounded, make the boundary cross itself; translate the mesh nearer the origin, "
+            "or separate the parts")

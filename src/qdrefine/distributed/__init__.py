@@ -167,7 +167,7 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
                 meta = _metadata(src, sch, levels) if last else {}
                 Level(cl, current, sch, path, f"{work}/coords-{level}",
                       None if last else f"{work}/coords-{level + 1}", level, meta,
-                      report.prefixed(f"level {level}/{levels}: "), timeouts).run()
+                      report.prefixed(f"level {level}/{levels}: "), timeouts, src).run()
                 if current is not src:
                     mesh_store.remove(current.path)
                 mesh_store.remove(f"{work}/coords-{level}")

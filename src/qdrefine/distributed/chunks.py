@@ -29,23 +29,32 @@ def distinct(values: NDArray, inverse: bool = True
     unstable sort is about four times faster than the stable one ``np.unique`` needs for
     the first occurrence.
     """
+    return distinct_counted(values, inverse)[:3]
+
+
+def distinct_counted(values: NDArray, inverse: bool = True
+                     ) -> tuple[NDArray, NDArray[np.intp], NDArray[np.intp] | None,
+                                NDArray[np.intp]]:
+    """:func:`distinct` and the number of occurrences of each distinct value ``(u,)``."""
     order = np.argsort(values, kind="quicksort")
     ordered = values[order]
     keys = np.empty(ordered.shape[0], dtype=values.dtype)
     one = np.empty(ordered.shape[0], dtype=np.intp)
+    count = np.zeros(ordered.shape[0], dtype=np.intp)
     back = np.empty(ordered.shape[0] if inverse else 0, dtype=np.intp)
-    u = _distinct_sorted(ordered, order, keys, one, back, inverse)
-    return keys[:u].copy(), one[:u].copy(), back if inverse else None
+    u = _distinct_sorted(ordered, order, keys, one, count, back, inverse)
+    return keys[:u].copy(), one[:u].copy(), back if inverse else None, count[:u].copy()
 
 
 @njit(cache=True)
-def _distinct_sorted(ordered, order, keys, one, back, inverse):
+def _distinct_sorted(ordered, order, keys, one, count, back, inverse):
     u = -1
     for i in range(ordered.shape[0]):
         if u < 0 or ordered[i] != keys[u]:
             u += 1
             keys[u] = ordered[i]
             one[u] = order[i]
+        count[u] += 1
         if inverse:
             back[order[i]] = u
     return u + 1

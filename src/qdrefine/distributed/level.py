@@ -1,7 +1,7 @@
 """One level of uniform refinement of a mesh store on Dask, numbered as in memory.
 
 One concern, hence one module over 400 lines: the driver (:class:`Level`) and the tasks
-it sends to the workers (below it) are the three stages described here, which share the
+it sends to the workers (below it) are the four stages described here, which share the
 run's job description and chunk boundaries; the cluster lives in
 :mod:`qdrefine.distributed.cluster`.
 
@@ -34,6 +34,9 @@ or in Zarr arrays under the run's temporary store, never in local files. The sta
    coordinates); each tagged edge chunk is split by
    :func:`qdrefine.refine.split_tagged_edges`. The points (old points, then the new points
    of the partitions in key order) are written by one task per points chunk.
+4. **boundary check**: stage 2 also sends each distinct edge's *lone code* (the chunk's
+   only half-edge of it, or -1), so each partition knows its edges of one half-edge in
+   the mesh; the client sweeps them, as in memory (:meth:`Level._check_boundary`).
 
 Up to :data:`DIRECT_PIECES` pieces, the pieces go from task to task as NumPy arrays instead
 of through a shuffle, with one edge partition per :data:`EDGE_GROUP` triangle chunks (one
@@ -53,16 +56,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import store as mesh_store
+from ..boundaries import first_bad_edge
 from ..jit import one_thread
 from ..kernels import emit
 from ..mesh import index_dtype
 from ..predicates import COORDINATE_RANGE, below_range, check_coordinates, orient_signs
 from ..schemes import Scheme, get_scheme
-from ..uniform import split_tagged_edges
+from ..uniform import edge_pieces, split_tagged_edges, too_close_reason
 from . import cluster
 from .chunks import (
     child_coordinates,
     distinct,
+    distinct_counted,
     edge_ends,
     global_children,
     merge_sorted,
@@ -132,6 +137,7 @@ class _Job:
         self.coords: Any = None
         self.next_coords: Any = None
         self.level = 1
+        self.origin = src.path
         self.token = os.urandom(16).hex()
 
     def __dask_tokenize__(self) -> str:
@@ -157,7 +163,8 @@ class _Direct(list):
 
 
 class Level:
-    """One level of refinement of ``src`` into a new (incomplete) store at ``out``.
+    """One level of refinement of ``src`` into a new (incomplete) store at ``out``; the
+    run's first source is ``origin`` (``src`` at ``level`` 1), which refusals name.
 
     ``coords`` is the URL of the Zarr array of corner coordinates; from ``level`` 2 on it
     is already written (by the previous level's emission). With ``next_coords``, the
@@ -167,7 +174,7 @@ class Level:
     def __init__(self, client: Client, src: mesh_store.MeshStore, sch: Scheme, out: str,
                  coords: str, next_coords: str | None, level: int,
                  metadata: dict[str, Any], report: cluster.Reporter,
-                 timeouts: dict[str, float]) -> None:
+                 timeouts: dict[str, float], origin: mesh_store.MeshStore) -> None:
         coords_ready = level > 1
         self.client, self.src, self.sch, self.out = client, src, sch, out
         self.coords_ready, self.metadata, self.report = coords_ready, metadata, report
@@ -176,7 +183,7 @@ class Level:
             raise ValueError(f"{report.prefix}{src.n_points} points; distributed refinement "
                              f"handles at most {MAX_POINTS} per level (int64 edge keys)")
         job = self.job = _Job(src, sch, coords, next_coords)
-        job.level = level
+        job.level, job.origin = level, origin.path
         job.coords = _coords_array(coords, job.m, job.chunk, not coords_ready)
         if next_coords is not None:
             job.next_coords = _coords_array(next_coords, job.m * job.children, job.chunk, True)
@@ -198,6 +205,7 @@ class Level:
             self.report.stage("emission of the children, written chunk by chunk")
             try:
                 self._emit(numbered, counts)
+                self._check_boundary(numbered, counts)
             finally:  # the partitions' results are no longer needed (nor recomputed)
                 _release([*numbered, *getattr(numbered, "inverses", [])])
 
@@ -271,7 +279,7 @@ class Level:
         if (job.n_chunks + len(self.edge_ranges)) * grouped <= DIRECT_PIECES:
             return self._edges_direct(self._splitters(grouped))
         divisions = self._splitters(max(1, len(self.tri_ranges)))
-        meta = _meta("key", "j", "xlo", "ylo", "xhi", "yhi", ints=2)
+        meta = _meta("key", "j", "lone", "xlo", "ylo", "xhi", "yhi", ints=3)
         rows = dd.from_map(_edge_frame, list(enumerate(self.tri_ranges)), job=job, meta=meta)
         if self.edge_ranges:
             items = [(job.n_chunks + i, r) for i, r in enumerate(self.edge_ranges)]
@@ -336,7 +344,26 @@ class Level:
         split = delayed(_split_chunk, pure=False)
         tasks += [split(part, job, offsets, a, b) for part, (a, b)
                   in zip(parts[job.n_chunks:], self.edge_ranges, strict=True)]
-        self._compute(tasks + self._points_tasks(numbered, counts, offsets))
+        # every chunk runs to its end: the refusal of the first triangle wins, as in memory
+        refusals = [r for r in self._compute(tasks + self._points_tasks(numbered, counts,
+                                                                         offsets)) if r]
+        if refusals:
+            raise min(refusals, key=lambda r: r[0])[1]
+
+    def _check_boundary(self, numbered: list, counts: NDArray[np.int64]) -> None:
+        """As :func:`qdrefine.uniform.check_boundary_rounding` in memory: the refined
+        boundary, its new points rounded to float64, must not cross itself, hold a new
+        point on another of its edges or cover an area twice; ``ValueError`` naming the
+        same triangle as in memory otherwise. The edge partitions send their boundary
+        edges (those of one half-edge in the mesh) with their new points; one plane sweep
+        over them here (``O(B log B)`` for ``B`` boundary edges)."""
+        job = self.job
+        parts = self.client.gather(self.client.map(_boundary_of, numbered, pure=False))
+        offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        row = _crossing_row(parts, offsets, job.n, job.k)
+        if row is not None:
+            raise _refused(job, row, _triangles(job, row, row + 1)[0],
+                           too_close_reason(job.coords[row]))
 
     def _points_tasks(self, numbered: list, counts: NDArray[np.int64],
                       offsets: NDArray[np.int64]) -> list:
@@ -522,32 +549,36 @@ def _half_edges(t: NDArray[np.int64], n: int) -> tuple[NDArray, NDArray]:
 
 
 def _distinct_edges(job: _Job, a: int, b: int, inverse: bool = False
-                    ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray | None]:
+                    ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray | None,
+                               NDArray[np.int64]]:
     """The distinct edges of triangles ``a .. b - 1``: sorted keys ``(u,)``, the
-    coordinates of the smaller and of the larger vertex ``(u, 4)`` and, if asked for, the
+    coordinates of the smaller and of the larger vertex ``(u, 4)``, if asked for, the
     index of each half-edge ``(v_i, v_{i+1})`` among the keys ``(3 (b - a),)`` (int32
-    while it fits)."""
+    while it fits), and the edges' *lone* codes ``(u,)``: ``2 h + w`` for an edge of one
+    half-edge ``h = 3 t + i`` here (``w`` = 1 where its triangle walks it from its larger
+    vertex), -1 for an edge of two (for the boundary check, :func:`_lone_edges`)."""
     t = _triangles(job, a, b)
     xy = job.coords[a:b]
     if np.isnan(xy).any():  # unwritten chunk: a bug, never a wrong result
         raise RuntimeError(f"qdrefine internal error: corner coordinates of triangles "
                            f"{a}..{b - 1} are missing")
-    key, _ = _half_edges(t, job.n)
-    keys, one, back = distinct(key.ravel(), inverse=inverse)
+    key, from_larger = _half_edges(t, job.n)
+    keys, one, back, count = distinct_counted(key.ravel(), inverse=inverse)
     if back is not None:
         back = back.astype(index_dtype(len(keys)))
-    return keys, edge_ends(t, xy, one), back
+    lone = np.where(count == 1, 2 * (3 * a + one) + from_larger.ravel()[one], -1)
+    return keys, edge_ends(t, xy, one), back, lone.astype(np.int64)
 
 
 def _edge_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
-    """The distinct edges of triangle chunk ``j``: key, ``j``, coordinates of the smaller
-    and of the larger vertex."""
+    """The distinct edges of triangle chunk ``j``: key, ``j``, lone code, coordinates of
+    the smaller and of the larger vertex."""
     import pandas as pd
 
     j, (a, b) = item
-    keys, ends, _ = _distinct_edges(job, a, b)
+    keys, ends, _, lone = _distinct_edges(job, a, b)
     return pd.DataFrame({"key": keys, "j": np.full(len(keys), j, dtype=np.int64),
-                         "xlo": ends[:, 0], "ylo": ends[:, 1], "xhi": ends[:, 2],
+                         "lone": lone, "xlo": ends[:, 0], "ylo": ends[:, 1], "xhi": ends[:, 2],
                          "yhi": ends[:, 3]})
 
 
@@ -560,16 +591,18 @@ def _tagged_frame(item: tuple[int, tuple[int, int]], job: _Job) -> pd.DataFrame:
     keys = np.unique(e.min(axis=1) * job.n + e.max(axis=1))
     nan = np.full(len(keys), np.nan)
     return pd.DataFrame({"key": keys, "j": np.full(len(keys), j, dtype=np.int64),
+                         "lone": np.full(len(keys), -1, dtype=np.int64),
                          "xlo": nan, "ylo": nan, "xhi": nan, "yhi": nan})
 
 
 def _edge_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list:
     """:func:`_distinct_edges` of triangles ``rows``, cut at the partitions' keys: piece
-    ``p`` is ``(keys, ends (u, 4))`` of partition ``p``, keys sorted; then the index of
-    every half-edge among the keys (for the chunk's emission)."""
-    keys, ends, inverse = _distinct_edges(job, *rows, inverse=True)
+    ``p`` is ``(keys, ends (u, 4), lone codes)`` of partition ``p``, keys sorted; then the
+    index of every half-edge among the keys (for the chunk's emission)."""
+    keys, ends, inverse, lone = _distinct_edges(job, *rows, inverse=True)
     at = np.searchsorted(keys, cuts)
-    return [*zip(np.split(keys, at), np.split(ends, at), strict=True), inverse]
+    return [*zip(np.split(keys, at), np.split(ends, at), np.split(lone, at), strict=True),
+            inverse]
 
 
 def _tagged_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) -> list[tuple]:
@@ -577,17 +610,18 @@ def _tagged_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) ->
     a, b = rows
     e = _source(job, "edges", a, b).astype(np.int64)
     keys = np.unique(e.min(axis=1) * job.n + e.max(axis=1))
-    return [(k, None) for k in np.split(keys, np.searchsorted(keys, cuts))]
+    return [(k, None, None) for k in np.split(keys, np.searchsorted(keys, cuts))]
 
 
 def _number_pieces(pieces: list[tuple], job: _Job
-                   ) -> tuple[int, NDArray[np.float64], list[NDArray[np.int64]]]:
+                   ) -> tuple[int, NDArray[np.float64], list[NDArray[np.int64]], tuple]:
     """Edge partition from the pieces of every triangle chunk, then every tagged edge
-    chunk: its number of distinct edges, their new points and, for every source, the
-    local ids of the keys it sent, in its order (-1: a tagged edge of no triangle)."""
+    chunk: its number of distinct edges, their new points, for every source the local ids
+    of the keys it sent, in its order (-1: a tagged edge of no triangle), and its boundary
+    edges (:func:`_lone_edges`)."""
     tri = [pc for pc in pieces if pc[1] is not None]  # the triangle chunks' come first
-    keys = np.concatenate([k for k, _ in tri]) if tri else np.empty(0, dtype=np.int64)
-    sizes = np.array([len(k) for k, _ in tri], dtype=np.int64)
+    keys = np.concatenate([k for k, _, _ in tri]) if tri else np.empty(0, dtype=np.int64)
+    sizes = np.array([len(k) for k, _, _ in tri], dtype=np.int64)
     first, inverse = merge_sorted(keys, np.concatenate([[0], np.cumsum(sizes)]))
     unique = keys[first]
     ids = index_dtype(len(unique))
@@ -595,14 +629,37 @@ def _number_pieces(pieces: list[tuple], job: _Job
     # each piece writes its edges' points at their places (an edge in two pieces twice,
     # the same bits): every piece is read in order, no copy of all the ends
     points = np.empty((len(unique) * job.k, 2), dtype=np.float64)
-    for (_, ends), lid in zip(tri, lids, strict=True):
+    for (_, ends, _), lid in zip(tri, lids, strict=True):
         new_points(ends, job.k, lid, points)
-    for k, _ in pieces[len(tri):]:  # tagged edges: -1 where no triangle has the edge
+    # an edge sent by one chunk that holds one half-edge of it is on the boundary
+    pieces_per_edge = np.bincount(inverse, minlength=len(unique))
+    lone = [code >= 0 for _, _, code in tri]
+    lone = [mask & (pieces_per_edge[lid] == 1) for mask, lid in zip(lone, lids, strict=True)]
+    boundary = _lone_edges(
+        np.concatenate([code[m] for (_, _, code), m in zip(tri, lone, strict=True)] or [[]]),
+        unique, np.concatenate([lid[m] for lid, m in zip(lids, lone, strict=True)] or [[]]),
+        np.concatenate([ends[m] for (_, ends, _), m in zip(tri, lone, strict=True)]
+                       or [np.empty((0, 4))]), points, job.k)
+    for k, _, _ in pieces[len(tri):]:  # tagged edges: -1 where no triangle has the edge
         lid = np.searchsorted(unique, k)
         found = lid < len(unique)
         found[found] = unique[lid[found]] == k[found]
         lids.append(np.where(found, lid, -1).astype(ids))
-    return len(unique), points, lids
+    return len(unique), points, lids, boundary
+
+
+def _lone_edges(lone: NDArray, keys: NDArray[np.int64], lids: NDArray,
+                ends: NDArray[np.float64], points: NDArray[np.float64], k: int) -> tuple:
+    """An edge partition's boundary edges (of one half-edge in the whole mesh): their lone
+    codes ``(B,)`` (:func:`_distinct_edges`), keys ``(B,)``, local ids ``(B,)``, ends
+    ``(B, 4)`` and new points ``(B, k, 2)``, for :meth:`Level._check_boundary`."""
+    lids = np.asarray(lids, dtype=np.int64)
+    return (np.asarray(lone, dtype=np.int64), keys[lids], lids, ends,
+            points.reshape(-1, k, 2)[lids])
+
+
+def _boundary_of(result: tuple) -> tuple:
+    return result[3]
 
 
 def _lids_for(result: tuple, j: int) -> NDArray[np.int64]:
@@ -610,16 +667,16 @@ def _lids_for(result: tuple, j: int) -> NDArray[np.int64]:
 
 
 def _number_edges(part: pd.DataFrame, job: _Job, p: int
-                  ) -> tuple[int, NDArray[np.float64], pd.DataFrame]:
+                  ) -> tuple[int, NDArray[np.float64], pd.DataFrame, tuple]:
     """Edge partition ``p`` (a range of keys, sorted): its number of distinct edges, their
-    new points ``(u_p k, 2)`` and the rows ``(j, key, p, local id)`` to send back (local id
-    -1: a tagged edge of no triangle)."""
+    new points ``(u_p k, 2)``, the rows ``(j, key, p, local id)`` to send back (local id
+    -1: a tagged edge of no triangle) and its boundary edges (:func:`_lone_edges`)."""
     import pandas as pd
 
     key = part.index.to_numpy(dtype=np.int64)
     j = part["j"].to_numpy(dtype=np.int64)
     tri = j < job.n_chunks
-    keys, first, _ = distinct(key[tri], inverse=False)
+    keys, first, _, rows_per_edge = distinct_counted(key[tri], inverse=False)
     lid = np.searchsorted(keys, key)
     found = lid < len(keys)
     found[found] = keys[lid[found]] == key[found]
@@ -627,7 +684,37 @@ def _number_edges(part: pd.DataFrame, job: _Job, p: int
     ends = part[["xlo", "ylo", "xhi", "yhi"]].to_numpy(dtype=np.float64)[tri][first]
     back = pd.DataFrame({"j": j, "key": key, "p": np.full(len(key), p, dtype=np.int64),
                          "lid": lid.astype(np.int64)})
-    return len(keys), new_points(ends, job.k), back
+    points = new_points(ends, job.k)
+    lone = part["lone"].to_numpy(dtype=np.int64)[tri][first]
+    on_boundary = np.flatnonzero((rows_per_edge == 1) & (lone >= 0))
+    return len(keys), points, back, _lone_edges(lone[on_boundary], keys, on_boundary,
+                                                ends[on_boundary], points, job.k)
+
+
+def _crossing_row(parts: list[tuple], offsets: NDArray[np.int64], n: int, k: int
+                  ) -> int | None:
+    """The row of the triangle refused by :func:`qdrefine.boundaries.first_bad_edge` on
+    the boundary edges of the partitions ``parts`` (:func:`_lone_edges`, with ``offsets``,
+    their first global edge ids) taken in the order of the triangles' half-edges, as in
+    memory; None where the refined boundary is sound."""
+    if not parts:
+        return None
+    lone, keys, lids, ends, new = (np.concatenate(x) for x in zip(*parts, strict=True))
+    p = np.repeat(np.arange(len(parts)), [len(x[0]) for x in parts])
+    order = np.argsort(lone, kind="stable")
+    lone, keys, gid = lone[order], keys[order], offsets[p[order]] + lids[order]
+    ends, new = ends[order].reshape(-1, 2, 2), new[order]
+    lo, hi = keys // n, keys % n
+    walked = np.where((lone & 1)[:, None] == 1, np.stack([hi, lo], 1), np.stack([lo, hi], 1))
+    pieces = edge_pieces(walked, gid, n, k).reshape(-1, 2)
+    # the pieces' points, numbered in the order of their ids (which the sweep's choices
+    # follow): the ends, then the new points as edge_pieces numbers them
+    ids = np.concatenate([lo, hi, (n + gid[:, None] * k + np.arange(k)).ravel()])
+    xy = np.concatenate([ends[:, 0], ends[:, 1], new.reshape(-1, 2)])
+    unique, first = np.unique(ids, return_index=True)
+    bad = first_bad_edge(xy[first], np.searchsorted(unique, pieces),
+                         int(np.searchsorted(unique, n)))
+    return None if bad is None else int(lone[bad // (k + 1)] >> 1) // 3
 
 
 def _count(result: tuple) -> int:
@@ -691,10 +778,11 @@ def _global_ids(part: pd.DataFrame | list, offsets: NDArray[np.int64],
 
 
 def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: int,
-                b: int, inverse: NDArray | None = None) -> None:
+                b: int, inverse: NDArray | None = None) -> tuple[int, ValueError] | None:
     """Children of triangles ``a .. b - 1`` (rows ``a T .. b T - 1``), their cell tags and,
     with a next level, their corner coordinates (``inverse``: as for
-    :func:`_global_ids`)."""
+    :func:`_global_ids`); or the first triangle refused, its row and why (nothing
+    written)."""
     sch = get_scheme(job.scheme)
     k, tc = job.k, job.children
     t = _triangles(job, a, b)
@@ -705,13 +793,17 @@ def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: in
     vertices, first, local = distinct(t.ravel())
     local = local.reshape(-1, 3).astype(np.int32)
     points = np.ascontiguousarray(xy[first])
-    _check_orientation(points, local, t, a, job.path)
+    refused = _check_orientation(points, local, t, a, job.path)
+    if refused:
+        return refused
     u = len(vertices)
     children = np.empty((len(t) * tc, 3), dtype=index_dtype(u + k * (job.n_out - job.n)))
     with one_thread():
         suspect = emit(points, local, gid, k, sch.forms, sch.lut, sch.tables, children)
-    if suspect.any():
-        _check_rounding(job, a, t, points, local, gid, children, suspect)
+    refused = _check_rounding(job, a, t, points, local, gid, children, suspect) \
+        if suspect.any() else None
+    if refused:
+        return refused
     glob = np.empty(children.shape, dtype=job.out["triangles"].dtype)
     global_children(children, vertices, job.n, glob)
     job.out["triangles"][a * tc:b * tc] = glob
@@ -722,10 +814,12 @@ def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: in
 
 
 def _check_rounding(job: _Job, a: int, t: NDArray, points: NDArray, local: NDArray,
-                    gid: NDArray, children: NDArray, suspect: NDArray[np.bool_]) -> None:
+                    gid: NDArray, children: NDArray, suspect: NDArray[np.bool_]
+                    ) -> tuple[int, ValueError] | None:
     """As :func:`qdrefine.uniform.check_rounding` in memory: the children of the parents at
     risk (``suspect``, from the kernel's certified bound) must be counter-clockwise with
-    their new points rounded to float64; ``ValueError`` naming the first parent otherwise."""
+    their new points rounded to float64; the first parent's row and ``ValueError``
+    naming it otherwise."""
     tc = job.children
     rows = np.flatnonzero(np.repeat(suspect, tc))
     xy = child_coordinates(points, local[suspect], gid[suspect], children[rows],
@@ -735,20 +829,39 @@ def _check_rounding(job: _Job, a: int, t: NDArray, points: NDArray, local: NDArr
     if bad.size:
         i = int(rows[bad[0]] // tc)
         what = "zero area" if signs[bad[0]] == 0 else "clockwise orientation"
-        level = f" (at level {job.level})" if job.level > 1 else ""
-        raise ValueError(f"{job.path}: triangle {a + i} {tuple(t[i].tolist())}{level} is too "
-                         "thin for its distance from the origin: its new points rounded to "
-                         f"float64 give a child with {what}; translate the mesh nearer the "
-                         "origin or refine less")
+        return a + i, _refused(job, a + i, t[i], "is too thin for its distance from the "
+                               "origin: its new points rounded to float64 give a child with "
+                               f"{what}; translate the mesh nearer the origin or refine less")
+    return None
 
 
-def _check_orientation(points: NDArray, local: NDArray, t: NDArray, a: int, path: str) -> None:
+def _refused(job: _Job, row: int, vertices: NDArray, reason: str) -> ValueError:
+    """The refusal of triangle ``row`` (with ``vertices``) of this level's source, named as
+    in memory (:meth:`qdrefine.uniform.RefusedTriangle.at_input`): by the run's source
+    and, from level 2 on, by its triangle whose descendant it is."""
+    named = f"{row} {tuple(int(v) for v in vertices)}"
+    if job.level > 1:
+        import zarr
+
+        t = row // job.children ** (job.level - 1)
+        first = zarr.open_group(job.origin, mode="r")["triangles"][t]
+        named = (f"{t} {tuple(int(v) for v in first)} cannot be refined {job.level} levels: "
+                 f"its descendant {named} of level {job.level - 1} (rows and points of that "
+                 "level's mesh, from 0)")
+    return ValueError(f"{job.origin}: triangle {named} {reason}")
+
+
+def _check_orientation(points: NDArray, local: NDArray, t: NDArray, a: int, path: str
+                       ) -> tuple[int, ValueError] | None:
+    """The first triangle of the chunk that is not counter-clockwise: its row and the
+    ``ValueError`` naming it; None if there is none."""
     signs = orient_signs(points, local)
     if (signs <= 0).any():
         i = int(np.flatnonzero(signs <= 0)[0])
         what = "has zero area" if signs[i] == 0 else "is clockwise"
-        raise ValueError(f"{path}: triangle {a + i} {tuple(t[i].tolist())} {what}; triangles "
-                         "must be counter-clockwise with positive area")
+        return a + i, ValueError(f"{path}: triangle {a + i} {tuple(t[i].tolist())} {what}; "
+                                 "triangles must be counter-clockwise with positive area")
+    return None
 
 
 def _split_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: int,
