@@ -883,6 +883,24 @@ def test_ctrl_c_while_the_command_loads_is_one_line(tmp_path):
     assert "KeyboardInterrupt" in library.stderr
 
 
+@pytest.mark.parametrize(("argv0", "process", "ignored"), [
+    ("qdrefine", "Dask Worker process (from Nanny)", True),  # the command's worker
+    ("qdrefine", "MainProcess", False),  # the command: its handler says it in one line
+    ("script.py", "Dask Worker process (from Nanny)", False),  # a program's worker
+])
+def test_ctrl_c_reaches_the_command_not_its_dask_workers(argv0, process, ignored):
+    """Ctrl-C reaches every process of ``qdrefine refine --dask``; a worker interrupted
+    while it imported Dask printed its traceback, one importing qdrefine a second
+    ``qdrefine: interrupted``. The command's spawned workers (named by multiprocessing
+    before they import the command's module) now ignore it; the command stops them."""
+    code = ("import multiprocessing, signal, sys; "
+            f"sys.argv[0] = {argv0!r}; multiprocessing.current_process().name = {process!r}; "
+            "import qdrefine; print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN)")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=120, check=True)
+    assert result.stdout.split() == [str(ignored)]
+
+
 @pytest.mark.parametrize("binary", [False, True])
 def test_a_huge_tag_count_in_a_data_section_is_an_error_not_a_hang(tmp_path, binary):
     """``$NodeData`` announcing 10**13 real tags: the reader read empty lines past the end

@@ -17,6 +17,22 @@ def _loading_for_the_command_line() -> bool:
         a == "-m" and b == "qdrefine" for a, b in zip(orig, orig[1:], strict=False))
 
 
+def _ignore_interrupts_in_workers() -> None:
+    """In the Dask worker processes of a ``qdrefine`` command (spawned with its arguments,
+    so they import this first), ignore Ctrl-C: the terminal sends it to every process of
+    the command, and the command stops its cluster itself and says so in one line, while
+    a worker interrupted as it starts printed a traceback of Dask's imports."""
+    import multiprocessing
+
+    if multiprocessing.current_process().name != "MainProcess" \
+            and _loading_for_the_command_line():
+        import signal
+
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+_ignore_interrupts_in_workers()
+
 try:
     from . import jit  # noqa: F401, I001  (first: where numba caches the kernels)
     from . import marking  # noqa: I001
