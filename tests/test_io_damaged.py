@@ -307,3 +307,35 @@ def test_msh_refuses_unsigned_integers_beyond_2_53(tmp_path):
     assert not path.exists()
     qdrefine.write(path, Mesh(P, T, point_data={"id": big % 2**53}))  # within: kept
     assert qdrefine.read(path).point_data["id"].dtype == np.uint64
+
+
+def _nested_metadata(path, ext: str) -> None:
+    """Replace the qdrefine record of ``path`` with JSON nested 50,000 deep."""
+    import re
+    import struct
+
+    data = path.read_bytes()
+    nested = b"[" * 50_000 + b"]" * 50_000
+    if ext == ".msh":
+        start = data.index(b"$QdrefineData\n") + len(b"$QdrefineData\n")
+        path.write_bytes(data[:start] + nested + data[data.index(b"\n$EndQdrefineData", start):])
+        return
+    # VTU: the record is the first appended array (UInt64 size header); move the others
+    at = data.index(b"_", data.index(b"<AppendedData")) + 1
+    size = struct.unpack("<Q", data[at:at + 8])[0]
+    shift = len(nested) - size
+    head = re.sub(rb'offset="(\d+)"', lambda m: b'offset="%d"' % (
+        int(m[1]) + shift if int(m[1]) else 0), data[:at])
+    head = head.replace(b'NumberOfTuples="%d"' % size, b'NumberOfTuples="%d"' % len(nested))
+    path.write_bytes(head + struct.pack("<Q", len(nested)) + nested + data[at + 8 + size:])
+
+
+@pytest.mark.parametrize("ext", [".msh", ".vtu"])
+def test_a_record_nested_too_deep_is_a_clear_error(tmp_path, ext):
+    """JSON nested deeper than Python's recursion limit: ``RecursionError`` and a traceback
+    from the command line (review); now the error of any record that is not JSON."""
+    path = tmp_path / f"m{ext}"
+    qdrefine.write(path, Mesh(P, T, point_data={"u": np.arange(5.0)}))
+    _nested_metadata(path, ext)
+    with pytest.raises(ValueError, match=r"m\.(msh|vtu).*is not JSON"):
+        qdrefine.read(path)

@@ -194,7 +194,7 @@ def _meta(root: ET.Element, array) -> dict:
         if item.get("Name") == _META:
             try:
                 meta = json.loads(array(item).astype(np.uint8).tobytes().decode())
-            except (UnicodeDecodeError, json.JSONDecodeError):
+            except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):  # too deep
                 raise ValueError(f"field data {_META!r} is not JSON") from None
             return meta if isinstance(meta, dict) else {}
     return {}

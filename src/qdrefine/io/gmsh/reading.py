@@ -672,7 +672,7 @@ def _qdrefine_data(f: _File, c: _Content, start: int) -> int:
     end = f.end_of("QdrefineData", start)
     try:
         c.dtypes = json.loads(f.data[start:end].decode())
-    except (UnicodeDecodeError, json.JSONDecodeError):
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):  # nested too deep
         raise f.error(start, "$QdrefineData is not JSON") from None
     if not isinstance(c.dtypes, dict):
         c.dtypes = {}
