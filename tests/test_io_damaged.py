@@ -339,3 +339,73 @@ def test_a_record_nested_too_deep_is_a_clear_error(tmp_path, ext):
     _nested_metadata(path, ext)
     with pytest.raises(ValueError, match=r"m\.(msh|vtu).*is not JSON"):
         qdrefine.read(path)
+
+
+FIELDS_22 = """$MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+5
+10 0 0 0
+30 1 0 0
+20 1 1 0
+40 0 1 0
+99 5 5 0
+$EndNodes
+$Elements
+3
+7 2 2 3 1 10 30 20
+5 2 2 4 1 10 20 40
+9 1 2 6 1 10 30
+$EndElements
+$ElementData
+1
+"v"
+1
+0.0
+3
+0
+1
+3
+7 70
+5 50
+9 90
+$EndElementData
+$NodeData
+1
+"p"
+1
+0.0
+3
+0
+1
+5
+99 9.9
+20 2
+10 1
+40 4
+30 3
+$EndNodeData
+"""
+
+
+@pytest.mark.parametrize(("old", "new", "message"), [
+    (None, None, None),  # as written: node 99 (no triangle's) and line 9 have values
+    ("99 9.9", "98 9.9", r"\$NodeData 'p' gives a value to node 98, which is not in \$Nodes"),
+    ("9 90", "8 90", r"\$ElementData 'v' gives a value to element 8, which is not in "
+                     r"\$Elements"),
+])
+def test_field_values_of_nodes_or_elements_not_in_the_file_are_refused(tmp_path, old, new,
+                                                                        message):
+    """A ``$NodeData`` value of a node not in ``$Nodes`` was dropped without a word and
+    the point it was meant for read as NaN (review)."""
+    path = tmp_path / "f.msh"
+    path.write_text(FIELDS_22 if old is None else FIELDS_22.replace(old, new))
+    if message is None:
+        mesh = qdrefine.read(path)
+        np.testing.assert_array_equal(mesh.point_data["p"], [1, 3, 2, 4, 9.9])
+        np.testing.assert_array_equal(mesh.cell_data["v"], [50, 70])
+    else:
+        with pytest.raises(ValueError, match=r"f\.msh: not a readable Gmsh MSH file \("
+                                             + message):
+            qdrefine.read(path)

@@ -775,8 +775,20 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
     kept_lines = line_ids[np.asarray(line_tags) != 0]  # the lines that are tagged edges
     if raw.edges is not None and len(kept_lines) == len(raw.edges):
         raw.edge_numbers = np.asarray(kept_lines, dtype=np.int64)
-    point_data = {name: _field(f, c, "point", name, v, _rows_of(tags, t, contiguous), len(tags))
-                  for name, (t, v) in c.node_data.items()}
+    point_data = {}
+    for name, (t, v) in c.node_data.items():
+        rows = _rows_of(tags, t, contiguous)
+        if (rows < 0).any():  # a value dropped, a point left NaN: refused
+            raise GmshError(f"$NodeData {name!r} gives a value to node "
+                            f"{int(t[np.argmax(rows < 0)])}, which is not in $Nodes")
+        point_data[name] = _field(f, c, "point", name, v, rows, len(tags))
+    if c.element_data:
+        known = np.concatenate(element_ids) if element_ids else np.empty(0, np.int64)
+        for name, (t, _) in c.element_data.items():
+            unknown = ~np.isin(t, known)
+            if unknown.any():
+                raise GmshError(f"$ElementData {name!r} gives a value to element "
+                                f"{int(t[np.argmax(unknown)])}, which is not in $Elements")
     cell_data = {}
     if len(tri_ids) and c.element_data:
         if _first_duplicate(tri_ids) is not None:
