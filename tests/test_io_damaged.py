@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import struct
 import sys
 import warnings
@@ -311,9 +312,6 @@ def test_msh_refuses_unsigned_integers_beyond_2_53(tmp_path):
 
 def _nested_metadata(path, ext: str) -> None:
     """Replace the qdrefine record of ``path`` with JSON nested 50,000 deep."""
-    import re
-    import struct
-
     data = path.read_bytes()
     nested = b"[" * 50_000 + b"]" * 50_000
     if ext == ".msh":
@@ -409,3 +407,31 @@ def test_field_values_of_nodes_or_elements_not_in_the_file_are_refused(tmp_path,
         with pytest.raises(ValueError, match=r"f\.msh: not a readable Gmsh MSH file \("
                                              + message):
             qdrefine.read(path)
+
+
+@pytest.mark.parametrize("binary", [False, True])
+@pytest.mark.parametrize(("block", "header", "message"), [
+    (0, (1, 1, 2), "an element block of triangles (dimension 2) in entity 1 of dimension 1"),
+    (1, (2, 1, 1), "an element block of lines (dimension 1) in entity 1 of dimension 2"),
+])
+def test_an_element_block_in_an_entity_of_another_dimension_is_refused(tmp_path, binary,
+                                                                       block, header, message):
+    """MSH 4.1: triangles in curve 1 took curve 1's physical group as cell tag, lines in
+    surface 1 became edges tagged with the surface's group, without a word (review)."""
+    path = tmp_path / "e.msh"
+    qdrefine.write(path, Mesh(P, T, cell_tags=np.ones(4, int), edges=[[0, 1]], edge_tags=[6]),
+                   binary=binary)
+    data = path.read_bytes()
+    old = [(2, 1, 2), (1, 1, 1)][block]  # surface 1's triangles, curve 1's line
+    if binary:
+        assert data.count(struct.pack("<3i", *old)) == 1
+        data = data.replace(struct.pack("<3i", *old), struct.pack("<3i", *header))
+    else:
+        count = [4, 1][block]
+        line = b"\n%d %d %d %d\n" % (*old, count)
+        assert data.count(line) == 1
+        data = data.replace(line, b"\n%d %d %d %d\n" % (*header, count))
+    path.write_bytes(data)
+    with pytest.raises(ValueError, match=r"e\.msh: not a readable Gmsh MSH file \((line|byte) "
+                                         r"\d+: " + re.escape(message)):
+        qdrefine.read(path)

@@ -21,6 +21,13 @@ ELEMENTS: dict[int, tuple[str, int]] = {
     37: ("quad25", 25), 38: ("quad36", 36), 92: ("hexahedron64", 64),
 }
 
+def element_dimension(typ: int) -> int:
+    """The dimension of Gmsh element type ``typ`` (a key of :data:`ELEMENTS`)."""
+    name = ELEMENTS[typ][0]
+    return 0 if name == "vertex" else 1 if name.startswith("line") else \
+        2 if name.startswith(("triangle", "quad")) else 3
+
+
 #: Integers stored as doubles are exact below this.
 EXACT_INT = 2**53
 

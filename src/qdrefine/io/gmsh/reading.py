@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from .._core import RawMesh, check_readable, from_blocks, read_bytes, split_data
 from .._text import BadNumber, parse, parse_table
 from ..recorded import record_of, restored
-from .common import ELEMENTS, EXACT_INT, GmshError
+from .common import ELEMENTS, EXACT_INT, GmshError, element_dimension
 
 __all__ = ["read"]
 
@@ -413,10 +413,13 @@ def _element_tables(f: _File, c: _Content, start: int, end: int) -> list | None:
                 np.empty((0, 1 + npe), np.int64)
             if rows.shape != (n, 1 + npe):
                 return None
-            blocks.append(_block41(c, typ, dim, ent, rows[:, 0], rows[:, 1:]))
+            blocks.append(_block41(f, line_start[at], c, typ, dim, ent, rows[:, 0],
+                                   rows[:, 1:]))
             at += 1 + n
         if f.data[line_start[at]:end].strip():
             return None
+    except GmshError:  # a refusal, at its line
+        raise
     except (IndexError, ValueError):
         return None
     return blocks
@@ -493,13 +496,14 @@ def _elements(f: _File, c: _Content, start: int) -> int:
     if f.binary:
         head, pos = f.take(start, np.uint64, 4, "$Elements")
         for _ in range(int(head[0])):
+            at = pos
             b, pos = f.take(pos, np.int32, 3, "$Elements")
             count, pos = f.take(pos, np.uint64, 1, "$Elements")
             kind = _kind(f, int(b[2]), pos)
             n, npe = int(count[0]), ELEMENTS[kind][1]
             v, pos = f.take(pos, np.uint64, n * (1 + npe), "$Elements")
             v = v.reshape(n, 1 + npe).view(np.int64)  # tags < 2**63
-            c.blocks.append(_block41(c, kind, int(b[0]), int(b[1]), v[:, 0], v[:, 1:]))
+            c.blocks.append(_block41(f, at, c, kind, int(b[0]), int(b[1]), v[:, 0], v[:, 1:]))
         return pos
     end = f.end_of("Elements", start)
     if _elements41_by_lines(f, c, start, end):
@@ -519,16 +523,21 @@ def _elements(f: _File, c: _Content, start: int) -> int:
             raise f.error(end, f"$Elements ends early (a block announces {n} elements)")
         rows = v[i:i + n * (1 + npe)].reshape(n, 1 + npe)
         i += n * (1 + npe)
-        c.blocks.append(_block41(c, kind, dim, ent, rows[:, 0], rows[:, 1:]))
+        c.blocks.append(_block41(f, start, c, kind, dim, ent, rows[:, 0], rows[:, 1:]))
     if i != len(v):
         raise f.error(end, f"$Elements holds {len(v) - i} numbers more than announced")
     return end
 
 
-def _block41(c: _Content, kind: int, dim: int, ent: int, ids: NDArray, nodes: NDArray
-             ) -> tuple[int, int, int, NDArray, NDArray]:
-    """An MSH 4.1 element block with its entity's physical tag; an entity in several
-    physical groups is noted (:func:`_several_groups`) and takes the first."""
+def _block41(f: _File, at: int, c: _Content, kind: int, dim: int, ent: int, ids: NDArray,
+             nodes: NDArray) -> tuple[int, int, int, NDArray, NDArray]:
+    """An MSH 4.1 element block (its header at offset ``at``) with its entity's physical
+    tag; an entity in several physical groups is noted (:func:`_several_groups`) and takes
+    the first. Elements of another dimension than their entity's are refused (they would
+    take another entity's physical group: a triangle on curve 1, curve 1's)."""
+    if element_dimension(kind) != dim:
+        raise f.error(at, f"an element block of {ELEMENTS[kind][0]}s (dimension "
+                          f"{element_dimension(kind)}) in entity {ent} of dimension {dim}")
     tags = c.entities.get((dim, ent), (0,))
     if len(tags) > 1 and len(ids):
         c.several.append((dim, ent, tags, ids, nodes))
