@@ -303,7 +303,7 @@ def test_msh_refuses_unsigned_integers_beyond_2_53(tmp_path):
     2**64."""
     path = tmp_path / "m.msh"
     big = np.array([0, 1, 2, 3, 2**64 - 1], dtype=np.uint64)
-    with pytest.raises(ValueError, match="beyond 2\\*\\*53"):
+    with pytest.raises(ValueError, match=r"integers of 2\*\*53 or more in magnitude"):
         qdrefine.write(path, Mesh(P, T, point_data={"id": big}))
     assert not path.exists()
     qdrefine.write(path, Mesh(P, T, point_data={"id": big % 2**53}))  # within: kept
@@ -434,4 +434,46 @@ def test_an_element_block_in_an_entity_of_another_dimension_is_refused(tmp_path,
     path.write_bytes(data)
     with pytest.raises(ValueError, match=r"e\.msh: not a readable Gmsh MSH file \((line|byte) "
                                          r"\d+: " + re.escape(message)):
+        qdrefine.read(path)
+
+
+def test_a_binary_marker_that_is_not_one_is_named(tmp_path):
+    """A damaged marker (7) was reported as a big-endian file (review)."""
+
+    path = tmp_path / "b.msh"
+    qdrefine.write(path, Mesh(P, T), binary=True)
+    data = path.read_bytes()
+    assert data.count(b"4.1 1 8\n" + struct.pack("<i", 1)) == 1
+    for marker, message in ((7, r"the binary format's marker is 7, not the integer 1"),
+                            (1 << 24, "big-endian binary MSH files are not supported")):
+        path.write_bytes(data.replace(b"4.1 1 8\n" + struct.pack("<i", 1),
+                                      b"4.1 1 8\n" + struct.pack("<i", marker)))
+        with pytest.raises(ValueError, match=r"b\.msh: not a readable Gmsh MSH file \(byte "
+                                             r"\d+: " + message):
+            qdrefine.read(path)
+
+
+@pytest.mark.parametrize("section", ["Nodes", "Elements", "PhysicalNames"])
+def test_a_section_given_twice_is_refused(tmp_path, section):
+    """MSH 2.2 with two ``$Nodes``: the second replaced the first and the error named a
+    node missing from it (review)."""
+    path = tmp_path / "t.msh"
+    qdrefine.write(path, Mesh(P, T, cell_tags=np.ones(4, int), physical_names={(2, 1): "a"}),
+                   format_version="2.2")
+    text = path.read_text()
+    block = text[text.index(f"${section}\n"):text.index(f"$End{section}\n")]
+    path.write_text(text.replace(block, block + f"$End{section}\n" + block, 1))
+    with pytest.raises(ValueError, match=rf"t\.msh: not a readable Gmsh MSH file \(line \d+: "
+                                         rf"a second \${section} section"):
+        qdrefine.read(path)
+
+
+def test_heavy_data_that_is_not_a_regular_file_is_named(tmp_path):
+    """An XDMF item naming ``/dev/zero`` said "/dev/zero: no such file" (review)."""
+    path = tmp_path / "m.xdmf"
+    qdrefine.write(path, Mesh(P, T))
+    text = path.read_text()
+    h5 = re.search(r">\s*([^<>:\s]+\.h5):", text)[1]
+    path.write_text(text.replace(f"{h5}:", "/dev/zero:"))
+    with pytest.raises(OSError, match="/dev/zero: not a regular file"):
         qdrefine.read(path)

@@ -66,7 +66,7 @@ def unreadable(path: Path, name: str, exc: BaseException) -> ValueError:
     if isinstance(exc, SystemExit):  # meshio printed its reason, then exited
         said = getattr(exc, "meshio_output", "").split("Error: Couldn't read file")[0]
         printed = [line.strip() for line in said.splitlines() if line.strip()]
-        detail = f"meshio: {printed[-1]}" if printed else "unreadable"
+        detail = f"meshio: {printed[-1]}" if printed else "meshio refused it without a reason"
     elif not detail:
         detail = type(exc).__name__
     return ValueError(f"{path}: not a readable {name} file ({detail[:200]})")

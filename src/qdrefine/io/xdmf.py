@@ -106,6 +106,9 @@ def _check_heavy_data(path: Path) -> None:
     items = _heavy_items(text)
     for name in dict.fromkeys(n for n, _, _ in items):
         h5_path = path.parent / name
+        if h5_path.exists() and not h5_path.is_file():
+            raise OSError(f"{h5_path}: not a regular file (the heavy data of {path.name}; a "
+                          "FIFO or device is not read)")
         if not h5_path.is_file():
             raise FileNotFoundError(f"{h5_path}: no such file (the heavy data of "
                                     f"{path.name})")

@@ -18,7 +18,8 @@ Layout of the files written
   view over the triangles, named by the field. Gmsh views have 1, 3 or 9 components and
   hold doubles: other widths are padded with zeros, and a ``$QdrefineData`` section (which
   Gmsh and meshio skip) records each field's shape and dtype so that qdrefine reads the field
-  back as it was. Integer data beyond 2**53 cannot be stored as doubles and is refused.
+  back as it was. Integer data of 2**53 or more in magnitude is refused: a double holds
+  2**53 exactly, but 2**53 + 1 rounds to it.
 """
 
 from __future__ import annotations

@@ -111,6 +111,7 @@ def _read(f: _File) -> RawMesh:
     c = _Content()
     pos = 0
     data = f.data
+    seen: set[str] = set()
     while True:
         while pos < len(data) and data[pos:pos + 1] in (b"\n", b"\r", b" ", b"\t"):
             pos += 1
@@ -125,6 +126,10 @@ def _read(f: _File) -> RawMesh:
         start = m.end()
         if not c.version and name != "MeshFormat":
             raise f.error(pos, "no $MeshFormat section at the start")
+        if name in _ONCE:
+            if name in seen:  # the second replaced the first without a word
+                raise f.error(pos, f"a second ${name} section (a file holds one)")
+            seen.add(name)
         handler = _HANDLERS.get(name)
         if c.version == "4.0" and (name not in ("MeshFormat", "Entities") or f.binary):
             handler = None  # meshio reads MSH 4.0; the entities only say what it loses
@@ -204,8 +209,11 @@ def _mesh_format(f: _File, c: _Content, start: int) -> int:
     if words[1] == "1":
         f.binary = True
         one, pos = f.take(pos, np.int32, 1, "$MeshFormat")
-        if one[0] != 1:
+        if one[0] == 1 << 24:  # 1 as written by a big-endian machine
             raise f.error(pos - 4, "big-endian binary MSH files are not supported")
+        if one[0] != 1:
+            raise f.error(pos - 4, f"the binary format's marker is {int(one[0])}, not the "
+                                   "integer 1")
     return pos
 
 
@@ -687,6 +695,10 @@ def _qdrefine_data(f: _File, c: _Content, start: int) -> int:
         c.dtypes = {}
     return end
 
+
+#: Sections a file holds at most once.
+_ONCE = ("MeshFormat", "PhysicalNames", "Entities", "PartitionedEntities", "Nodes",
+         "Elements", "QdrefineData")
 
 _HANDLERS = {
     "MeshFormat": _mesh_format, "PhysicalNames": _physical_names, "Entities": _entities,

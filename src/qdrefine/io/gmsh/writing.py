@@ -366,8 +366,9 @@ def _data_sections(path: Path, mesh, point_data: dict, cell_data: dict, binary: 
         for name, value in fields.items():
             a = np.asarray(value)
             if a.dtype.kind in "iu" and a.size and (a.max() >= EXACT_INT or a.min() <= -EXACT_INT):
-                raise ValueError(f"{path}: {where} data {name!r} holds integers beyond 2**53, "
-                                 "which Gmsh's double values cannot hold exactly")
+                raise ValueError(f"{path}: {where} data {name!r} holds integers of 2**53 or "
+                                 "more in magnitude, which Gmsh's double values cannot tell "
+                                 "apart (2**53 + 1 is stored as 2**53)")
             if '"' in name or "\n" in name:
                 raise ValueError(f"{path}: {where} data name {name!r} contains a quote or a "
                                  "line break, which MSH files cannot hold")
