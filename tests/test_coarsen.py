@@ -346,6 +346,33 @@ def test_tagged_pieces_in_any_order_are_joined():
     assert got == want
 
 
+@settings(max_examples=15, deadline=None)
+@given(st.sampled_from(["l_shape", "plate_with_hole"]), st.sampled_from(SCHEMES),
+       st.integers(0, 2**32 - 1), st.floats(0.05, 1.0))
+def test_tagged_pieces_turned_around_are_joined(name, scheme, seed, share):
+    """Pieces listed the other way round (``(80, 0)`` for ``(0, 80)``; a tool that sorts
+    each edge as ``(min, max)``) made coarsening refuse the mesh when a chain mixed both
+    directions (review). They are joined as the pieces as refined are, each joined edge
+    in the direction of the piece in its row."""
+    base = examples.gmsh_mesh(name)
+    fine = refine(base, scheme, marked=np.ones(base.n_triangles, dtype=bool))
+    rng = np.random.default_rng(seed)
+    turn = rng.random(len(fine.edges)) < share
+    edges = np.where(turn[:, None], fine.edges[:, ::-1], fine.edges)
+    every = np.ones(fine.n_triangles, dtype=bool)
+    back = coarsen(fine.replace(edges=edges), every, scheme)
+    want = coarsen(fine, every, scheme)
+    assert len(want.edges) == len(base.edges)
+    np.testing.assert_array_equal(back.points, want.points)
+    np.testing.assert_array_equal(back.triangles, want.triangles)
+    np.testing.assert_array_equal(back.edge_tags, want.edge_tags)
+    same = (back.edges == want.edges).all(axis=1)
+    assert (same | (back.edges == want.edges[:, ::-1]).all(axis=1)).all()
+    # each joined edge runs as the piece in its row (the first piece as refined)
+    first = np.flatnonzero(~np.isin(fine.edges[:, 0], np.arange(base.n_points, fine.n_points)))
+    np.testing.assert_array_equal(same, ~turn[first])
+
+
 def test_history_rows_of_a_mirrored_mesh(tmp_path):
     """History rows are counter-clockwise like triangles: a Mesh built with clockwise ones
     is refused with one line; a mirrored file (its triangles flipped on reading, with a

@@ -253,36 +253,42 @@ def _joined(edges: NDArray[np.int64], tags: NDArray, removed: NDArray[np.bool_]
     """Tagged edges joined across the ``removed`` points: ``a -> v`` and ``v -> b`` with
     one tag become ``a -> b`` in the first piece's row, as refinement had cut them (the
     next row first, as refinement lists the pieces; any other piece from ``v`` with that
-    tag otherwise; an edge in two groups, two tags, is two chains)."""
+    tag otherwise; an edge in two groups, two tags, is two chains). Pieces that another
+    tool turned around (``v -> a``, e.g. each edge listed as ``(min, max)``) are joined
+    too, once the chains as refinement cut them are found: through a removed point, a
+    chain goes on by a piece of its tag that ends there; the joined edge keeps the
+    direction of its row's piece."""
     if not removed[edges.reshape(-1)].any():
         return edges, tags
     tags = np.asarray(tags)
-    order = np.lexsort((np.arange(edges.shape[0]), tags, edges[:, 0]))  # by start, tag
+    rows = np.arange(edges.shape[0])
+    by_start = np.lexsort((rows, tags, edges[:, 0]))
+    by_end = np.lexsort((rows, tags, edges[:, 1]))
     out = np.empty_like(edges)
     keep = np.zeros(edges.shape[0], dtype=bool)
-    bad = _join(edges, tags.astype(np.int64), removed, order, out, keep)
+    bad = _join(edges, tags.astype(np.int64), removed, by_start, by_end, out, keep)
     if bad >= 0:
         raise ValueError(f"cannot coarsen: tagged edge {bad} ({edges[bad, 0]}, "
                          f"{edges[bad, 1]}) meets a point that coarsening removes, where no "
-                         "other tagged edge of its tag goes on in its direction")
+                         "other tagged edge of its tag goes on")
     return out[keep], tags[keep]
 
 
 @njit(cache=True)
-def _next_piece(edges, tags, order, used, v, tag):
-    """An unused edge starting at ``v`` with ``tag`` (``order``: rows by start, tag), or
-    -1."""
+def _next_piece(edges, side, tags, order, used, v, tag):
+    """An unused edge whose end ``side`` (0: start, 1: end) is ``v``, with ``tag``
+    (``order``: rows by that end, then tag), or -1."""
     lo, hi = 0, order.shape[0]
-    while lo < hi:  # the first row with (start, tag) >= (v, tag)
+    while lo < hi:  # the first row with (end, tag) >= (v, tag)
         mid = (lo + hi) // 2
         r = order[mid]
-        if edges[r, 0] < v or (edges[r, 0] == v and tags[r] < tag):
+        if edges[r, side] < v or (edges[r, side] == v and tags[r] < tag):
             lo = mid + 1
         else:
             hi = mid
     while lo < order.shape[0]:
         r = order[lo]
-        if edges[r, 0] != v or tags[r] != tag:
+        if edges[r, side] != v or tags[r] != tag:
             break
         if not used[r]:
             return r
@@ -291,26 +297,52 @@ def _next_piece(edges, tags, order, used, v, tag):
 
 
 @njit(cache=True)
-def _join(edges, tags, removed, order, out, keep):
+def _join(edges, tags, removed, by_start, by_end, out, keep):
     """Chains of tagged edges through removed points into ``out`` (the first piece's row,
-    ``keep``); the first edge that fits no chain, or -1."""
+    ``keep``): first as refinement cut them (each piece from where the last one ended),
+    then, among the pieces left, also through pieces turned around; the first edge that
+    fits no chain, or -1."""
     n = edges.shape[0]
     used = np.zeros(n, dtype=np.bool_)
-    for i in range(n):
-        if removed[edges[i, 0]]:
-            continue  # a later piece of a chain
-        used[i] = True
-        end, last = edges[i, 1], i
-        while removed[end]:
-            j = last + 1
-            if not (j < n and not used[j] and edges[j, 0] == end and tags[j] == tags[i]):
-                j = _next_piece(edges, tags, order, used, end, tags[i])
-            if j < 0:
-                return i
-            used[j] = True
-            end, last = edges[j, 1], j
-        out[i, 0], out[i, 1] = edges[i, 0], end
-        keep[i] = True
+    chain = np.empty(n, dtype=np.int64)
+    for turned in (False, True):
+        for i in range(n):
+            if used[i]:
+                continue
+            a, end, flipped = edges[i, 0], edges[i, 1], False
+            if removed[a]:
+                if not turned or removed[end]:
+                    continue  # a later piece of a chain
+                a, end, flipped = end, a, True  # a last piece turned around: walk back
+            used[i] = True
+            k, last = 0, i
+            while removed[end]:
+                j = last + 1
+                if not (j < n and not used[j] and edges[j, 0] == end and tags[j] == tags[i]):
+                    j = _next_piece(edges, 0, tags, by_start, used, end, tags[i])
+                if j >= 0:
+                    nxt = edges[j, 1]
+                elif turned:
+                    j = _next_piece(edges, 1, tags, by_end, used, end, tags[i])
+                    nxt = edges[j, 0] if j >= 0 else -1
+                if j < 0:
+                    break
+                used[j] = True
+                chain[k] = j
+                k += 1
+                end, last = nxt, j
+            if removed[end]:  # the chain stops at a removed point
+                if turned:
+                    return i
+                used[i] = False  # left to the second pass
+                for q in range(k):
+                    used[chain[q]] = False
+                continue
+            if flipped:
+                out[i, 0], out[i, 1] = end, a
+            else:
+                out[i, 0], out[i, 1] = a, end
+            keep[i] = True
     for i in range(n):
         if not used[i]:
             return i
