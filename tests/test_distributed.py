@@ -212,6 +212,22 @@ def test_a_needle_far_from_the_origin_is_refused_as_in_memory(tmp_path, client):
     assert leftovers(tmp_path) == ["in.zarr"]
 
 
+@pytest.mark.parametrize("chunk", [1, 3])
+def test_a_clockwise_triangle_is_refused_before_a_thin_one_for_any_chunk_size(tmp_path,
+                                                                             client, chunk):
+    """Row 0 too thin at 1e7, row 2 clockwise: in memory the clockwise one is refused (the
+    input's validation); here the thin one was when it came first in an earlier chunk
+    (review)."""
+    points = np.array([[0, 0], [1, 0], [0.5, 1e-9], [0.5, -1], [2, 0], [2, 1]]) + 1e7
+    triangles = [[0, 1, 2], [0, 3, 1], [4, 1, 5]]
+    with pytest.raises(ValueError) as exc:
+        Mesh(points, triangles)
+    path = raw_store(tmp_path / "in.zarr", points, triangles, chunk=chunk)
+    with pytest.raises(ValueError) as info:
+        refine_store(path, tmp_path / "out.zarr", client=client)
+    assert str(info.value) == f"{path}: {exc.value}"
+
+
 def test_a_refusal_at_the_second_level_names_the_source_as_in_memory(tmp_path, client):
     """Named the temporary store of level 1 (gone by then) and a triangle of it."""
     needle = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 3.5e-9], [0.5, -1.0]]) + 1e7

@@ -344,11 +344,12 @@ class Level:
         split = delayed(_split_chunk, pure=False)
         tasks += [split(part, job, offsets, a, b) for part, (a, b)
                   in zip(parts[job.n_chunks:], self.edge_ranges, strict=True)]
-        # every chunk runs to its end: the refusal of the first triangle wins, as in memory
+        # every chunk runs to its end: as in memory, a clockwise triangle (the input's
+        # validation) is refused before any too thin one, and the first row wins
         refusals = [r for r in self._compute(tasks + self._points_tasks(numbered, counts,
                                                                          offsets)) if r]
         if refusals:
-            raise min(refusals, key=lambda r: r[0])[1]
+            raise min(refusals, key=lambda r: r[:2])[2]
 
     def _check_boundary(self, numbered: list, counts: NDArray[np.int64]) -> None:
         """As :func:`qdrefine.uniform.check_boundary_rounding` in memory: the refined
@@ -726,10 +727,12 @@ def _new_points_rows(result: tuple, lo: int, hi: int) -> NDArray[np.float64]:
     return result[1][lo:hi]
 
 
-def _write_points(parts: list, job: _Job, a: int, b: int) -> None:
+def _write_points(parts: list, job: _Job, a: int, b: int
+                  ) -> tuple[int, int, ValueError] | None:
     """Rows ``a .. b - 1`` of the output's ``points``, ``node_x`` and ``node_y``: ``parts``
     are, in order, a range ``(start, stop)`` of the source's points and arrays of new
-    points."""
+    points; or 2 (a refusal after the triangles' ones, as in memory), the row of the first
+    point below the coordinate range and the ``ValueError`` naming it (nothing written)."""
     xy = np.concatenate([mesh_store.read_rows(job.path, job.src["points"], "points", *p)
                          if isinstance(p, tuple) else p
                          for p in parts])
@@ -738,11 +741,12 @@ def _write_points(parts: list, job: _Job, a: int, b: int) -> None:
     size = np.abs(xy)
     low = ((size < COORDINATE_RANGE[0]) & (size != 0)).any(axis=1)
     if low.any():  # as refine() in memory: the predicates are exact only in the range
-        i = int(np.flatnonzero(low)[0])
-        raise ValueError(f"{job.path}: {below_range(a + i, xy[i], None)}")
+        i = int(np.flatnonzero(low)[0])  # a row that the later levels keep
+        return 2, a + i, ValueError(f"{job.origin}: {below_range(a + i, xy[i], None)}")
     job.out["points"][a:b] = xy
     for i, name in enumerate(mesh_store.NODE_COORDINATES):
         job.out[name][a:b] = xy[:, i]
+    return None
 
 
 def _back_rows(result: tuple) -> pd.DataFrame:
@@ -778,11 +782,11 @@ def _global_ids(part: pd.DataFrame | list, offsets: NDArray[np.int64],
 
 
 def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: int,
-                b: int, inverse: NDArray | None = None) -> tuple[int, ValueError] | None:
+                b: int, inverse: NDArray | None = None) -> tuple[int, int, ValueError] | None:
     """Children of triangles ``a .. b - 1`` (rows ``a T .. b T - 1``), their cell tags and,
     with a next level, their corner coordinates (``inverse``: as for
-    :func:`_global_ids`); or the first triangle refused, its row and why (nothing
-    written)."""
+    :func:`_global_ids`); or the first triangle refused: 0 (clockwise) or 1 (too thin),
+    its row and why (nothing written)."""
     sch = get_scheme(job.scheme)
     k, tc = job.k, job.children
     t = _triangles(job, a, b)
@@ -815,11 +819,11 @@ def _emit_chunk(part: pd.DataFrame, job: _Job, offsets: NDArray[np.int64], a: in
 
 def _check_rounding(job: _Job, a: int, t: NDArray, points: NDArray, local: NDArray,
                     gid: NDArray, children: NDArray, suspect: NDArray[np.bool_]
-                    ) -> tuple[int, ValueError] | None:
+                    ) -> tuple[int, int, ValueError] | None:
     """As :func:`qdrefine.uniform.check_rounding` in memory: the children of the parents at
     risk (``suspect``, from the kernel's certified bound) must be counter-clockwise with
-    their new points rounded to float64; the first parent's row and ``ValueError``
-    naming it otherwise."""
+    their new points rounded to float64; otherwise 1 (a rounding refusal), the first
+    parent's row and the ``ValueError`` naming it."""
     tc = job.children
     rows = np.flatnonzero(np.repeat(suspect, tc))
     xy = child_coordinates(points, local[suspect], gid[suspect], children[rows],
@@ -829,9 +833,10 @@ def _check_rounding(job: _Job, a: int, t: NDArray, points: NDArray, local: NDArr
     if bad.size:
         i = int(rows[bad[0]] // tc)
         what = "zero area" if signs[bad[0]] == 0 else "clockwise orientation"
-        return a + i, _refused(job, a + i, t[i], "is too thin for its distance from the "
-                               "origin: its new points rounded to float64 give a child with "
-                               f"{what}; translate the mesh nearer the origin or refine less")
+        return 1, a + i, _refused(job, a + i, t[i], "is too thin for its distance from the "
+                                  "origin: its new points rounded to float64 give a child "
+                                  f"with {what}; translate the mesh nearer the origin or "
+                                  "refine less")
     return None
 
 
@@ -852,15 +857,16 @@ def _refused(job: _Job, row: int, vertices: NDArray, reason: str) -> ValueError:
 
 
 def _check_orientation(points: NDArray, local: NDArray, t: NDArray, a: int, path: str
-                       ) -> tuple[int, ValueError] | None:
-    """The first triangle of the chunk that is not counter-clockwise: its row and the
-    ``ValueError`` naming it; None if there is none."""
+                       ) -> tuple[int, int, ValueError] | None:
+    """The first triangle of the chunk that is not counter-clockwise: 0 (an input
+    refusal), its row and the ``ValueError`` naming it; None if there is none."""
     signs = orient_signs(points, local)
     if (signs <= 0).any():
         i = int(np.flatnonzero(signs <= 0)[0])
         what = "has zero area" if signs[i] == 0 else "is clockwise"
-        return a + i, ValueError(f"{path}: triangle {a + i} {tuple(t[i].tolist())} {what}; "
-                                 "triangles must be counter-clockwise with positive area")
+        return 0, a + i, ValueError(f"{path}: triangle {a + i} {tuple(t[i].tolist())} "
+                                    f"{what}; triangles must be counter-clockwise with "
+                                    "positive area")
     return None
 
 
