@@ -40,7 +40,7 @@ try:
     from .io import read, write
     from .mesh import Mesh
     from .partition import partition, partition_many
-    from .refine import refine, refine_with_parents
+    from .refine import RefusedTriangle, refine, refine_with_parents
     from .schemes import SCHEMES, get_scheme, scheme_names
 except KeyboardInterrupt:
     # Ctrl-C in the second or so a command spends loading numba: one line, like the
@@ -52,6 +52,7 @@ except KeyboardInterrupt:
 
 __all__ = [
     "Mesh",
+    "RefusedTriangle",
     "SCHEMES",
     "coarsen",
     "get_scheme",
