@@ -806,8 +806,7 @@ def test_refine_refuses_exactly_the_meshes_whose_rounded_boundary_crosses(
 def test_a_rounded_point_on_another_parts_vertex_is_refused():
     """A new point rounded exactly onto a vertex of another part: the sweep took the two
     for one vertex (a pinch), and refine returned a mesh with duplicate points (review)."""
-    from qdrefine.uniform import RefusedTriangle
-
+    RefusedTriangle = qdrefine.RefusedTriangle  # noqa: N806 (the documented name)
     mesh = Mesh(np.array([(0.0, 0.0), (1.5, -1.0), (3.0, 3.012e-16), (1.0, 1.004e-16),
                           (0.5, 1.0), (1.5, 1.0)]), [[0, 1, 2], [3, 5, 4]])
     loose = qdrefine.refine(mesh, strict=False)
