@@ -298,6 +298,13 @@ def test_memory_limit_variable(monkeypatch):
     monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "lots")
     with pytest.raises(ValueError, match="expected a size"):
         qdrefine.refine(mesh)
+    for text in ("inf", "1e400", "1e300GiB", "nan", "-1"):  # inf: OverflowError (review)
+        monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, text)
+        with pytest.raises(ValueError, match=f"{text}'?: expected a finite size >= 0"):
+            qdrefine.refine(mesh)
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "1KiB")
+    with pytest.raises(MemoryError, match=r"0 levels needs more than 1e\+21 GiB; "):
+        qdrefine.refine(mesh, levels=10**22)  # said "needs about more than"
     monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "1GiB")
     assert qdrefine.refine(mesh).n_triangles == 7 * mesh.n_triangles
 

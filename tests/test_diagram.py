@@ -326,3 +326,11 @@ def test_interval_enclosures_contain_the_point_values():
     for s, t in rng.uniform(0, 1, (20, 2)):
         v = ex.normalized_angles(x0 + s * w, y0 + t * w, names)
         assert np.all(lo <= v) and np.all(v <= hi)
+
+
+@pytest.mark.parametrize("tol", [1e-15, 1e-300, 0.0, float("nan")])
+def test_a_tolerance_below_the_rounding_floor_is_refused(tol):
+    """``tol=1e-300`` bisected until the machine's memory was full (review): the summed error
+    estimates stop falling at about 3e-14."""
+    with pytest.raises(ValueError, match="tol must be at least 1e-14"):
+        dg.region_area("C2", method="quadrature", tol=tol)

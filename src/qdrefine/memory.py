@@ -76,7 +76,8 @@ def check_needed(need: int, what: str) -> None:
     avail = available_memory()
     if avail is not None and need > avail[0]:
         source = f" ({avail[1]})" if avail[1] == MEMORY_LIMIT_VARIABLE else ""
-        raise MemoryError(f"{what} needs about {_gib(need)} GiB; {_gib(avail[0])} GiB "
+        amount = f"about {_gib(need)}" if need < 2**100 else "more than 1e+21"
+        raise MemoryError(f"{what} needs {amount} GiB; {_gib(avail[0])} GiB "
                           f"available{source}")
 
 
@@ -155,7 +156,7 @@ def check_memory(mesh: Mesh, scheme: str | Scheme, levels: int) -> None:
 
 
 def _gib(n: int) -> str:
-    return f"{n / 2**30:.3g}" if n < 2**100 else "more than 1e+21"
+    return f"{n / 2**30:.3g}"
 
 
 def _read(path: str) -> str | None:
@@ -173,6 +174,7 @@ def _parse_bytes(text: str) -> int:
     except ValueError:
         raise ValueError(f"{MEMORY_LIMIT_VARIABLE}={text!r}: expected a size such as 4GiB, "
                          "512M or 1000000") from None
-    if not number >= 0:
-        raise ValueError(f"{MEMORY_LIMIT_VARIABLE}={text!r}: expected a size >= 0")
-    return int(number * _UNITS[unit])
+    size = number * _UNITS[unit]
+    if not 0 <= size < float("inf"):  # nan, negative, inf or 1e400 (int(inf) raised)
+        raise ValueError(f"{MEMORY_LIMIT_VARIABLE}={text!r}: expected a finite size >= 0")
+    return int(size)

@@ -146,10 +146,41 @@ def non_negative(text: str) -> int:
 
 def positive(text: str) -> int:
     """argparse type: an integer >= 1."""
-    value = non_negative(text)
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a number >= 1, got {value}")
     return value
+
+
+def similarity_tolerance(parser: argparse.ArgumentParser, what: str) -> None:
+    """The ``--tolerance DEG`` option of the similarity classes (``quality``, ``compare``),
+    ``what`` starting its help."""
+    from ..quality import SIMILARITY_TOLERANCE, TOLERANCE_RANGE
+
+    lo, hi = TOLERANCE_RANGE
+    parser.add_argument("--tolerance", type=float_between(
+                            lo, hi, "the angles are computed to about 1e-13 degrees"),
+                        default=SIMILARITY_TOLERANCE, metavar="DEG",
+                        help=f"{what}, {lo:g} to {hi:g} degrees "
+                             f"(default {SIMILARITY_TOLERANCE:g})")
+
+
+def float_between(lo: float, hi: float, why: str = "") -> Callable[[str], float]:
+    """argparse type: a number from ``lo`` to ``hi`` (``why``: the reason for the range,
+    said when a value is refused)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"expected a number from {lo:g} to {hi:g}, got "
+                                             f"{text}{f' ({why})' if why else ''}")
+        return value
+    return parse
 
 
 def positive_float(text: str) -> float:

@@ -6,7 +6,6 @@ import argparse
 
 from .. import report
 from ..io import read
-from ..quality import SIMILARITY_TOLERANCE
 from ..schemes import scheme_names
 from . import _common
 
@@ -30,9 +29,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--plot", metavar="FILE.png",
                         help="also save a plot of the three figures against the level")
-    parser.add_argument("--tolerance", type=_common.positive_float,
-                        default=SIMILARITY_TOLERANCE, metavar="DEG",
-                        help=f"similarity tolerance, degrees (default {SIMILARITY_TOLERANCE:g})")
+    _common.similarity_tolerance(parser, "similarity tolerance")
 
 
 def run(args: argparse.Namespace) -> int:

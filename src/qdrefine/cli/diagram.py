@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 
+from ..diagram.quadrature import SMALLEST_TOL
 from . import _common
 
 HELP = "areas of the regions of the paper's mapping diagram (exact arcs + quadrature)"
@@ -14,8 +15,11 @@ HELP = "areas of the regions of the paper's mapping diagram (exact arcs + quadra
 def add_args(parser: argparse.ArgumentParser) -> None:
     _common.setup(parser, quiet=False)  # one-line argument errors; it prints only its table
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.add_argument("--tol", type=float, default=1e-10,
-                        help="quadrature tolerance on each area (default 1e-10)")
+    parser.add_argument("--tol", type=_common.float_between(
+                            SMALLEST_TOL, 1e-6, "float64 rounding bounds the error estimates "
+                            "at about 3e-14"), default=1e-10, metavar="T",
+                        help=f"quadrature tolerance on each area, {SMALLEST_TOL:g} to 1e-6 "
+                             "(default 1e-10)")
     parser.add_argument("--no-angle-measure", action="store_true",
                         help="skip the fractions under the two-smallest-angles measure")
 
@@ -24,8 +28,6 @@ def run(args: argparse.Namespace) -> int:
     from ..diagram import compute
     from ..paper import PAPER_CLAIMS
 
-    if not (0 < args.tol <= 1e-6):
-        raise ValueError(f"--tol must be in (0, 1e-6], got {args.tol}")
     res = compute(tol=args.tol, angle_measure=not args.no_angle_measure)
     obj = res.to_json()
     obj["paper_claims"] = {

@@ -6,7 +6,6 @@ import argparse
 
 from .. import report
 from ..io import read
-from ..quality import SIMILARITY_TOLERANCE
 from . import _common
 
 HELP = "quality figures: angles, radius and aspect ratios, shape classes, histogram"
@@ -20,10 +19,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     parser.add_argument("--histogram", metavar="FILE.png",
                         help="also save a histogram of the minimum angles (.png, .svg, .pdf)")
-    parser.add_argument("--tolerance", type=_common.positive_float,
-                        default=SIMILARITY_TOLERANCE, metavar="DEG",
-                        help="angle tolerance of the similarity classes, degrees "
-                             f"(default {SIMILARITY_TOLERANCE:g})")
+    _common.similarity_tolerance(parser, "angle tolerance of the similarity classes")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -20,6 +20,12 @@ from numpy.typing import NDArray
 from .arcs import Predicate, _critical_x, decision_arcs
 from .mapping import _fans_float, fan_angles, inside_half
 
+#: The smallest quadrature tolerance: the summed error estimates of the diagram's areas stop
+#: falling at about 3e-14 (float64 rounding of the roots and sums), so a smaller target only
+#: bisects on: at 1e-16 one run took 43 s and 5 GB before running out of memory, at 1e-300
+#: it filled the machine's (a review, 2026-11-27).
+SMALLEST_TOL = 1e-14
+
 # ----------------------------------------------------------------------------------------
 # numerical areas: roots along y, adaptive Gauss-Kronrod along x
 
@@ -257,6 +263,9 @@ def quadrature_area(predicate: Predicate, comparisons: list[Comparison] = (),
     if measure not in _MEASURE_FUNCS:
         raise ValueError(f"unknown measure {measure!r}; choose one of: "
                          f"{', '.join(_MEASURE_FUNCS)}")
+    if not tol >= SMALLEST_TOL:
+        raise ValueError(f"tol must be at least {SMALLEST_TOL:g} (float64 rounding bounds "
+                         f"the error estimates at about 3e-14), got {tol!r}")
     arcs, lines = decision_arcs()
     breaks = _critical_x(arcs, lines, 0.0, 0.5)
     win = window or inside_half
