@@ -235,6 +235,13 @@ def test_bad_input_through_the_entry_point(tmp_path):
     (["diagram", "--tol", "1e-300"], "--tol: expected a number from 1e-14 to 1e-06, got "
                                      "1e-300 (float64 rounding"),
     (["demo", "--afem", "--cycles", "-1"], "expected a number >= 1, got -1"),  # said >= 0
+    # an empty argument was the path '.' (review): 'demo ""' wrote into the current folder
+    (["info", ""], "argument IN: expected a value, got an empty string"),
+    (["demo", ""], "argument OUTDIR: expected a value, got an empty string"),
+    (["refine", "IN.msh", "OUT.msh", "--mark-file", ""], "argument --mark-file: expected a "
+                                                         "value, got an empty string"),
+    (["refine", "IN.msh", "OUT.zarr"], "OUT.zarr: a Zarr mesh store, which this command does "
+                                       "not write ('refine --dask' refines into one"),
     (["plot", "IN.msh", "p.png", "--color", "tag"], "IN.msh: no cell tags to colour by"),
     (["demo", "--afem", "--levels", "2"], "--levels applies to the plate demo"),
     (["demo", "--cycles", "2"], "--cycles applies to --afem only"),

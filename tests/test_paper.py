@@ -16,6 +16,7 @@ from qdrefine.paper import (
     lemma_checks,
     table1,
     verdicts,
+    write_all,
 )
 from qdrefine.paper import iterated as it
 from qdrefine.paper.cost import DecisionCost, decision_costs
@@ -313,10 +314,13 @@ def test_iterate_refuses_digits_its_keys_cannot_hold():
         it.iterate("7t-qd", [[0.3, 0.7]], levels=1, digits=10)
 
 
-def test_paper_refuses_an_empty_output_name(run):
-    result = run("paper", "", "--no-figures")
-    assert result.returncode == 1
-    assert result.stderr == "qdrefine: error: the output directory is an empty name\n"
+def test_paper_refuses_an_empty_output_name(run, tmp_path):
+    result = run("paper", "", "--no-figures")  # an argument error, as for every command
+    assert result.returncode == 2
+    assert result.stderr == ("qdrefine: error: argument OUTDIR: expected a value, got an "
+                             "empty string (see 'qdrefine paper --help')\n")
+    with pytest.raises(ValueError, match="the output directory is an empty name"):
+        write_all("", figures=False)
 
 
 def test_fig09c_zero_line_is_where_the_difference_changes_sign(ctx):

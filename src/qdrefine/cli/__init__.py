@@ -70,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "handler", None) is None:
         parser.print_help()
         return 2
+    _refuse_empty_values(args)
     try:
         named = contextlib.nullcontext() if sys.stdout is None else \
             contextlib.redirect_stdout(_NamedStream(sys.stdout, "standard output"))  # '>&-'
@@ -95,6 +96,20 @@ def main(argv: list[str] | None = None) -> int:
         terminated = str(exc) == TERMINATED
         print(f"qdrefine: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
         return 143 if terminated else 130
+
+
+def _refuse_empty_values(args: argparse.Namespace) -> None:
+    """An empty argument (``qdrefine info ""``) is an argument error: as a path it was
+    taken as ``.``, the current directory (``demo ""`` wrote its files there)."""
+    command = args.parser
+    for action in command._actions:
+        if "" in (action.const, action.default):  # '--dask' alone: const ""
+            continue
+        value = getattr(args, action.dest, None)
+        values = value if isinstance(value, list) else [value]
+        if any(v == "" for v in values):
+            name = "/".join(action.option_strings) or action.metavar or action.dest
+            command.error(f"argument {name}: expected a value, got an empty string")
 
 
 def _version() -> str:

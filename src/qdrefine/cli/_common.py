@@ -240,6 +240,10 @@ def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
     elif kinds == "store":
         raise ValueError(f"{out}: expected a Zarr mesh store (a name ending in {STORE})")
     elif kinds in ("mesh", "any"):
+        if out.suffix.lower() == STORE:  # a store where this command writes files
+            raise ValueError(f"{out}: a Zarr mesh store, which this command does not write "
+                             "('refine --dask' refines into one; 'qdrefine convert FILE "
+                             f"{out.name}' makes one of a file)")
         if out.suffix.lower() not in FORMATS:
             what = f"extension '{out.suffix}'" if out.suffix else "no extension"
             raise ValueError(f"{out}: unknown file format ({what}); known extensions: "

@@ -12,7 +12,7 @@ HELP = ("recompute the paper's figures, Table 1, claims, certified extrema and t
 
 def add_args(parser: argparse.ArgumentParser) -> None:
     _common.setup(parser)
-    parser.add_argument("outdir", help="output directory (created if missing)")
+    parser.add_argument("outdir", metavar="OUTDIR", help="output directory (created if missing)")
     parser.add_argument("--no-figures", action="store_true", help="write report.md only")
 
 
