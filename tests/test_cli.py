@@ -474,3 +474,20 @@ def test_reports_say_what_was_done(tmp_path, run):
     assert copied.returncode == 0 and "(8 triangles copied, 0 levels;" in copied.stdout
     report = run("quality", mesh)
     assert "(two smallest angles equal within 1e-06 deg)" in report.stdout
+
+
+def test_check_json_has_the_same_keys_for_every_file(tmp_path, run):
+    """A file without triangles gave a report without the mesh's figures, and a Gmsh file
+    'numbered_from': 0 beside 'numbered_by': 'file' (review)."""
+    good = tmp_path / "good.msh"
+    qdrefine.write(good, examples.square(2))
+    empty = tmp_path / "empty.msh"
+    empty.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n1\n1 0 0 0\n"
+                     "$EndNodes\n$Elements\n0\n$EndElements\n")
+    row = tmp_path / "row.node"
+    qdrefine.write(row, examples.square(2))
+    reports = [json.loads(run("check", path, "--json").stdout) for path in (good, empty, row)]
+    assert list(reports[0]) == list(reports[1]) == list(reports[2])
+    assert reports[0]["numbered_by"] == "file" and reports[0]["numbered_from"] is None
+    assert reports[1]["triangles"] is None and reports[1]["problems"][0]["count"] == 1
+    assert reports[2]["numbered_by"] == "row" and reports[2]["numbered_from"] in (0, 1)

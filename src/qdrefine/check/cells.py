@@ -62,7 +62,7 @@ def triangles(found: Findings, triangles: ArrayLike) -> NDArray | None:
         found.add("triangles", f"triangles must hold integers, got dtype {t.dtype}")
         return None
     if t.size == 0 and t.ndim <= 2 and (t.ndim < 2 or t.shape[1] in (0, 3)):
-        found.add("no-triangles", "the mesh has no triangles", 0)
+        found.add("no-triangles", "the mesh has no triangles", 1)
         return None
     if t.ndim != 2 or t.shape[1] != 3:
         found.add("triangles", f"triangles must have shape (M, 3), got {t.shape}")

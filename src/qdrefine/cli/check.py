@@ -90,19 +90,29 @@ def refused_by_refine(raw: RawMesh, found: Checked, scheme: str) -> None:
                                     "scheme": sch.name})))
 
 
+#: The mesh figures of a report, always present (null where the checks could not get
+#: that far, e.g. a file without triangles); ``numbered_from`` is null where the file's own
+#: numbers name points and triangles.
+FIGURES = ("points", "used_points", "triangles", "edges", "boundary_edges",
+           "euler_characteristic", "numbered_from", "numbered_by")
+
+
 def summary(path: str, found: Checked) -> dict[str, Any]:
     """The JSON-ready report: file, usable, counts by severity, mesh figures, problems."""
     problems = [p.to_json() for p in found.problems]
     count = {s: sum(p["severity"] == s for p in problems) for s in ("error", "warning", "note")}
+    figures = {key: found.summary.get(key) for key in FIGURES}
+    if figures["numbered_by"] == "file":
+        figures["numbered_from"] = None
     return {"file": str(path), "usable": found.ok, "errors": count["error"],
-            "warnings": count["warning"], "notes": count["note"], **found.summary,
+            "warnings": count["warning"], "notes": count["note"], **figures,
             "problems": problems}
 
 
 def format_report(report: dict[str, Any]) -> str:
     """The report as text: one line of figures, one line per problem, the verdict."""
     lines = []
-    if "triangles" in report:
+    if report.get("triangles") is not None:
         lines.append(f"{report['file']}: {report['points']} points ({report['used_points']} "
                      f"used), {report['triangles']} triangles, {report['edges']} edges "
                      f"({report['boundary_edges']} on the boundary), Euler characteristic "

@@ -174,7 +174,7 @@ def from_blocks(path: Path, points: NDArray, blocks: list[tuple[str, NDArray]],
         raw.problem("cell-types", f"holds {what} cells; qdrefine reads linear triangles "
                     "(with line and vertex cells) only", sum(others.values()))
     if sum(len(t) for t in tris) == 0:
-        raw.problem("no-triangles", "holds no triangles", 0)
+        raw.problem("no-triangles", "holds no triangles", 1)
         return raw
     raw.triangles = (tris[0] if len(tris) == 1 else np.concatenate(tris)).astype(
         np.int64, copy=False)

@@ -200,7 +200,7 @@ def _read_ele(eles: _Lines, raw: RawMesh, node_path: Path) -> None:
                                  "tag", line)
             tags[i] = int(attr)
     if m == 0:
-        raw.problem("no-triangles", "holds no triangles", 0)
+        raw.problem("no-triangles", "holds no triangles", 1)
         return
     if tri_first is not None and tri_first != raw.base:
         raise eles.error(f"triangles are numbered from {tri_first} but the vertices of "
