@@ -300,16 +300,16 @@ def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
         raise ValueError(f"{path}: format_version applies to Gmsh .msh files only")
     if compress and fmt not in COMPRESSIBLE:
         raise ValueError(f"{path}: compression applies to .vtu and .xdmf files only")
-    _warn_dropped(path, fmt, mesh)
     binary = fmt.binary if binary is None else bool(binary)
+    if compress and fmt is _VTU and not binary:
+        raise ValueError(f"{path}: compression applies to binary (appended) VTU only")
     if binary and path.suffix.lower() == ".stl":
         _check_float32(path, mesh)
+    _warn_dropped(path, fmt, mesh)  # after the refusals: an error is one line
     if fmt is _GMSH:
         gmsh.write(path, mesh, binary=bool(binary),
                    version=format_version or GMSH_VERSIONS[0])
     elif fmt is _VTU:
-        if compress and not binary:
-            raise ValueError(f"{path}: compression applies to binary (appended) VTU only")
         vtu.write(path, mesh, binary=bool(binary), compress=compress)
     elif fmt is _XDMF:
         xdmf.write(path, mesh, compress=compress)
