@@ -99,6 +99,12 @@ def test_info_json_and_text(tmp_path, run):
     text = run("info", DATA / "two_regions_41.msh").stdout
     assert "conforming            yes" in text and "edge tags             10 (bottom):" in text
     assert d["edge_tags"]["20"]["name"] == "interface"  # Gmsh physical names label the tags
+    # every tag has the same keys: "name" is null where there is none (it was left out)
+    unnamed = tmp_path / "unnamed.msh"
+    square = examples.square(2)
+    qdrefine.write(unnamed, square.replace(cell_tags=np.ones(square.n_triangles, int)))
+    tags = json.loads(run("info", unnamed, "--json").stdout)["cell_tags"]
+    assert tags and all(entry["name"] is None for entry in tags.values())
 
 
 def test_quality_json_and_histogram(tmp_path, run):

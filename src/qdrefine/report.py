@@ -103,9 +103,9 @@ def tag_label(tag: int | str, name: str | None) -> str:
 
 
 def _named(entry: dict[str, Any], mesh: Mesh, dim: int, tag: int) -> dict[str, Any]:
-    """``entry`` with the tag's physical name (``"name"``) where the mesh has one."""
-    name = physical_name(mesh, dim, tag)
-    return entry if name is None else {"name": name, **entry}
+    """``entry`` with the tag's physical name (``"name"``, null where the mesh has none:
+    the same keys for every tag)."""
+    return {"name": physical_name(mesh, dim, tag), **entry}
 
 
 def quality(mesh: Mesh, *, bin_width: float = 2.5,

@@ -215,7 +215,9 @@ def small_angles(found: Findings, p: NDArray, t: NDArray, min_angle: float) -> N
     if small.any():
         i = int(np.argmin(angles))
         angle = float(min_angles(p, t[i:i + 1])[0])  # the value quality reports, bit for bit
-        found.add("small-angle", f"{int(small.sum())} triangles have an angle below "
+        many = int(small.sum())
+        found.add("small-angle", f"{many} triangle{' has' if many == 1 else 's have'} an "
+                  "angle below "
                   f"{min_angle:g} degrees (smallest: {angle:.3g} degrees in triangle "
                   f"{found.triangle(i)})", int(small.sum()), triangle=found.triangle(i),
                   angle=angle)
