@@ -228,6 +228,26 @@ def test_a_clockwise_triangle_is_refused_before_a_thin_one_for_any_chunk_size(tm
     assert str(info.value) == f"{path}: {exc.value}"
 
 
+@pytest.mark.parametrize("levels", [1, 2])
+def test_a_point_below_the_range_is_refused_after_every_level_as_in_memory(tmp_path, client,
+                                                                           levels):
+    """A needle too thin at level 2 beside a triangle whose new points fall below the
+    coordinate range at level 1: in memory the range is checked after the last level, so
+    the needle is refused at 2 levels; here the point was, at level 1 (review)."""
+    needle = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 3.5e-9], [0.5, -1.0]]) + 1e7
+    tiny = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1e-100]])
+    mesh = Mesh(np.concatenate([needle, tiny]), [[0, 1, 2], [0, 3, 1], [4, 5, 6]])
+    with pytest.raises(ValueError) as exc:
+        refine(mesh, levels=levels)
+    assert ("too thin" in str(exc.value)) == (levels == 2)
+    store.create(tmp_path / "in.zarr", mesh, chunk_size=3)
+    with pytest.raises(ValueError) as info:
+        refine_store(tmp_path / "in.zarr", tmp_path / "out.zarr", levels=levels, client=client)
+    expected = str(exc.value).split(" is too thin")[0].split("; the mesh's smallest")[0]
+    assert str(info.value).startswith(f"{tmp_path / 'in.zarr'}: {expected}")
+    assert leftovers(tmp_path) == ["in.zarr"]
+
+
 def test_a_refusal_at_the_second_level_names_the_source_as_in_memory(tmp_path, client):
     """Named the temporary store of level 1 (gone by then) and a triangle of it."""
     needle = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 3.5e-9], [0.5, -1.0]]) + 1e7

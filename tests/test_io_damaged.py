@@ -11,6 +11,7 @@ import json
 import os
 import re
 import struct
+import subprocess
 import sys
 import warnings
 from pathlib import Path
@@ -339,80 +340,56 @@ def test_a_record_nested_too_deep_is_a_clear_error(tmp_path, ext):
         qdrefine.read(path)
 
 
-FIELDS_22 = """$MeshFormat
-2.2 0 8
-$EndMeshFormat
-$Nodes
-5
-10 0 0 0
-30 1 0 0
-20 1 1 0
-40 0 1 0
-99 5 5 0
-$EndNodes
-$Elements
-3
-7 2 2 3 1 10 30 20
-5 2 2 4 1 10 20 40
-9 1 2 6 1 10 30
-$EndElements
-$ElementData
-1
-"v"
-1
-0.0
-3
-0
-1
-3
-7 70
-5 50
-9 90
-$EndElementData
-$NodeData
-1
-"p"
-1
-0.0
-3
-0
-1
-5
-99 9.9
-20 2
-10 1
-40 4
-30 3
-$EndNodeData
+GMSH_VIEWS = """
+import sys
+import gmsh
+gmsh.initialize(interruptible=False)
+gmsh.option.setNumber("General.Terminal", 0)
+gmsh.model.add("t")
+occ = gmsh.model.occ
+occ.fragment([(2, occ.addRectangle(0, 0, 0, 1, 1))], [(2, occ.addRectangle(1, 0, 0, 1, 1))])
+occ.synchronize()
+gmsh.model.addPhysicalGroup(2, [1], name="left")  # the file holds this surface's mesh only
+gmsh.model.mesh.setSize(gmsh.model.getEntities(0), 0.5)
+gmsh.model.mesh.generate(2)
+tags, xyz, _ = gmsh.model.mesh.getNodes()
+u = gmsh.view.add("u")  # over every node of the model: x
+gmsh.view.addHomogeneousModelData(u, 0, "t", "NodeData", tags, xyz[0::3].tolist())
+_, elements, nodes = gmsh.model.mesh.getElements(2)
+w = gmsh.view.add("w")  # over every triangle: its element tag
+gmsh.view.addHomogeneousModelData(w, 0, "t", "ElementData", elements[0],
+                                  elements[0].astype(float).tolist())
+gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+gmsh.option.setNumber("PostProcessing.SaveMesh", 1)
+gmsh.view.write(u, sys.argv[1])
+gmsh.view.write(w, sys.argv[2])
+gmsh.finalize()
 """
 
 
-@pytest.mark.parametrize(("old", "new", "message"), [
-    (None, None, None),  # as written: node 99 (no triangle's) and line 9 have values
-    ("99 9.9", "98 9.9", r"\$NodeData 'p' gives a value to node 98, which is not in \$Nodes"),
-    ("9 90", "8 90", r"\$ElementData 'v' gives a value to element 8, which is not in "
-                     r"\$Elements"),
-])
-def test_field_values_of_nodes_or_elements_not_in_the_file_are_refused(tmp_path, old, new,
-                                                                        message):
-    """A ``$NodeData`` value of a node not in ``$Nodes`` was dropped without a word and
-    the point it was meant for read as NaN (review)."""
-    path = tmp_path / "f.msh"
-    path.write_text(FIELDS_22 if old is None else FIELDS_22.replace(old, new))
-    if message is None:
-        mesh = qdrefine.read(path)
-        np.testing.assert_array_equal(mesh.point_data["p"], [1, 3, 2, 4, 9.9])
-        np.testing.assert_array_equal(mesh.cell_data["v"], [50, 70])
-    else:
-        with pytest.raises(ValueError, match=r"f\.msh: not a readable Gmsh MSH file \("
-                                             + message):
-            qdrefine.read(path)
+def test_a_view_of_the_whole_model_beside_a_mesh_of_its_groups_reads(tmp_path):
+    """Gmsh writes a view's values for every node (element) of the model, and the mesh of
+    its physical groups only: the values of nodes and elements not in the file are left
+    out. A review's refusal of such values (to catch a damaged tag) refused Gmsh's own
+    files (a review of the session)."""
+    u, w = tmp_path / "u.msh", tmp_path / "w.msh"
+    subprocess.run([sys.executable, "-c", GMSH_VIEWS, str(u), str(w)], check=True,
+                   timeout=120)
+    mesh = qdrefine.read(u)
+    assert mesh.cell_tags is not None and np.unique(mesh.cell_tags).tolist() == [1]
+    assert mesh.points[:, 0].max() <= 1.0  # the left surface only
+    np.testing.assert_array_equal(mesh.point_data["u"], mesh.points[:, 0])
+    cells = qdrefine.read(w)
+    assert cells.n_triangles == mesh.n_triangles
+    assert np.isfinite(cells.cell_data["w"]).all()
 
 
 @pytest.mark.parametrize("binary", [False, True])
 @pytest.mark.parametrize(("block", "header", "message"), [
-    (0, (1, 1, 2), "an element block of triangles (dimension 2) in entity 1 of dimension 1"),
-    (1, (2, 1, 1), "an element block of lines (dimension 1) in entity 1 of dimension 2"),
+    (0, (1, 1, 2), "element block 1 of $Elements holds triangles (dimension 2) in entity 1 "
+                   "of dimension 1"),
+    (1, (2, 1, 1), "element block 2 of $Elements holds lines (dimension 1) in entity 1 of "
+                   "dimension 2"),
 ])
 def test_an_element_block_in_an_entity_of_another_dimension_is_refused(tmp_path, binary,
                                                                        block, header, message):
@@ -430,10 +407,12 @@ def test_an_element_block_in_an_entity_of_another_dimension_is_refused(tmp_path,
         count = [4, 1][block]
         line = b"\n%d %d %d %d\n" % (*old, count)
         assert data.count(line) == 1
+        header_line = data[:data.index(line)].count(b"\n") + 2  # the block header's line
         data = data.replace(line, b"\n%d %d %d %d\n" % (*header, count))
     path.write_bytes(data)
-    with pytest.raises(ValueError, match=r"e\.msh: not a readable Gmsh MSH file \((line|byte) "
-                                         r"\d+: " + re.escape(message)):
+    where = r"byte \d+" if binary else f"line {header_line}"
+    with pytest.raises(ValueError, match=r"e\.msh: not a readable Gmsh MSH file \(" + where
+                                         + ": " + re.escape(message)):
         qdrefine.read(path)
 
 

@@ -159,15 +159,17 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
             n_workers = check_workers(cl, src.path, url, src.chunk_size,
                                       _stored_chunk_rows(src))
             work = f"{out}/{WORK}"
-            current, times = src, []
+            current, times, below = src, [], None
             for level in range(1, levels + 1):
                 t0 = time.perf_counter()
                 last = level == levels
                 path = out if last else f"{work}/level-{level}.zarr"
                 meta = _metadata(src, sch, levels) if last else {}
-                Level(cl, current, sch, path, f"{work}/coords-{level}",
-                      None if last else f"{work}/coords-{level + 1}", level, meta,
-                      report.prefixed(f"level {level}/{levels}: "), timeouts, src).run()
+                run = Level(cl, current, sch, path, f"{work}/coords-{level}",
+                            None if last else f"{work}/coords-{level + 1}", level, meta,
+                            report.prefixed(f"level {level}/{levels}: "), timeouts, src)
+                run.run()
+                below = below or run.below_range  # the first level's: the smallest row
                 if current is not src:
                     mesh_store.remove(current.path)
                 mesh_store.remove(f"{work}/coords-{level}")
@@ -175,6 +177,8 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
                     mesh_store.finish(path)
                     current = mesh_store.open(path)
                 times.append(time.perf_counter() - t0)
+            if below is not None:  # no output: the writing is abandoned, as on any error
+                raise below
             if levels == 0:
                 report.stage("copying the source")
                 copy_store(cl, src, out, _metadata(src, sch, 0), timeouts)

@@ -184,6 +184,9 @@ class Level:
                              f"handles at most {MAX_POINTS} per level (int64 edge keys)")
         job = self.job = _Job(src, sch, coords, next_coords)
         job.level, job.origin = level, origin.path
+        #: The refusal of a point below the coordinate range, raised by the run once every
+        #: level is done (in memory: after the last level), None if there is none.
+        self.below_range: ValueError | None = None
         job.coords = _coords_array(coords, job.m, job.chunk, not coords_ready)
         if next_coords is not None:
             job.next_coords = _coords_array(next_coords, job.m * job.children, job.chunk, True)
@@ -345,11 +348,16 @@ class Level:
         tasks += [split(part, job, offsets, a, b) for part, (a, b)
                   in zip(parts[job.n_chunks:], self.edge_ranges, strict=True)]
         # every chunk runs to its end: as in memory, a clockwise triangle (the input's
-        # validation) is refused before any too thin one, and the first row wins
+        # validation) is refused before any too thin one, and the first row wins; a point
+        # below the coordinate range (class 2) is refused after every level, as in memory
+        # (its row stays the same in the later levels' points)
         refusals = [r for r in self._compute(tasks + self._points_tasks(numbered, counts,
                                                                          offsets)) if r]
+        now = [r for r in refusals if r[0] < 2]
+        if now:
+            raise min(now, key=lambda r: r[:2])[2]
         if refusals:
-            raise min(refusals, key=lambda r: r[:2])[2]
+            self.below_range = min(refusals, key=lambda r: r[1])[2]
 
     def _check_boundary(self, numbered: list, counts: NDArray[np.int64]) -> None:
         """As :func:`qdrefine.uniform.check_boundary_rounding` in memory: the refined
@@ -731,8 +739,9 @@ def _write_points(parts: list, job: _Job, a: int, b: int
                   ) -> tuple[int, int, ValueError] | None:
     """Rows ``a .. b - 1`` of the output's ``points``, ``node_x`` and ``node_y``: ``parts``
     are, in order, a range ``(start, stop)`` of the source's points and arrays of new
-    points; or 2 (a refusal after the triangles' ones, as in memory), the row of the first
-    point below the coordinate range and the ``ValueError`` naming it (nothing written)."""
+    points; and, where a point is below the coordinate range, 2 (a refusal after every
+    level's others, as in memory), the row of the first and the ``ValueError`` naming it
+    (written all the same, for the later levels)."""
     xy = np.concatenate([mesh_store.read_rows(job.path, job.src["points"], "points", *p)
                          if isinstance(p, tuple) else p
                          for p in parts])
@@ -740,12 +749,12 @@ def _write_points(parts: list, job: _Job, a: int, b: int
         raise RuntimeError(f"qdrefine internal error: {len(xy)} points for rows {a}..{b - 1}")
     size = np.abs(xy)
     low = ((size < COORDINATE_RANGE[0]) & (size != 0)).any(axis=1)
+    job.out["points"][a:b] = xy
+    for j, name in enumerate(mesh_store.NODE_COORDINATES):
+        job.out[name][a:b] = xy[:, j]
     if low.any():  # as refine() in memory: the predicates are exact only in the range
         i = int(np.flatnonzero(low)[0])  # a row that the later levels keep
         return 2, a + i, ValueError(f"{job.origin}: {below_range(a + i, xy[i], None)}")
-    job.out["points"][a:b] = xy
-    for i, name in enumerate(mesh_store.NODE_COORDINATES):
-        job.out[name][a:b] = xy[:, i]
     return None
 
 

@@ -412,7 +412,7 @@ def _element_tables(f: _File, c: _Content, start: int, end: int) -> list | None:
     try:
         n_blocks = int(lines(0, 1).split()[0])
         at = 1
-        for _ in range(n_blocks):
+        for block in range(n_blocks):
             dim, ent, typ, n = (int(x) for x in lines(at, 1).split())
             if typ not in ELEMENTS:
                 return None
@@ -421,7 +421,7 @@ def _element_tables(f: _File, c: _Content, start: int, end: int) -> list | None:
                 np.empty((0, 1 + npe), np.int64)
             if rows.shape != (n, 1 + npe):
                 return None
-            blocks.append(_block41(f, line_start[at], c, typ, dim, ent, rows[:, 0],
+            blocks.append(_block41(f, line_start[at], block, c, typ, dim, ent, rows[:, 0],
                                    rows[:, 1:]))
             at += 1 + n
         if f.data[line_start[at]:end].strip():
@@ -503,7 +503,7 @@ def _elements(f: _File, c: _Content, start: int) -> int:
         return _elements22(f, c, start)
     if f.binary:
         head, pos = f.take(start, np.uint64, 4, "$Elements")
-        for _ in range(int(head[0])):
+        for block in range(int(head[0])):
             at = pos
             b, pos = f.take(pos, np.int32, 3, "$Elements")
             count, pos = f.take(pos, np.uint64, 1, "$Elements")
@@ -511,7 +511,8 @@ def _elements(f: _File, c: _Content, start: int) -> int:
             n, npe = int(count[0]), ELEMENTS[kind][1]
             v, pos = f.take(pos, np.uint64, n * (1 + npe), "$Elements")
             v = v.reshape(n, 1 + npe).view(np.int64)  # tags < 2**63
-            c.blocks.append(_block41(f, at, c, kind, int(b[0]), int(b[1]), v[:, 0], v[:, 1:]))
+            c.blocks.append(_block41(f, at, block, c, kind, int(b[0]), int(b[1]), v[:, 0],
+                                     v[:, 1:]))
         return pos
     end = f.end_of("Elements", start)
     if _elements41_by_lines(f, c, start, end):
@@ -520,7 +521,7 @@ def _elements(f: _File, c: _Content, start: int) -> int:
     if len(v) < 4:
         raise f.error(start, "$Elements ends early")
     i = 4
-    for _ in range(int(v[0])):
+    for block in range(int(v[0])):
         if i + 4 > len(v):
             raise f.error(end, "$Elements ends early (fewer element blocks than announced)")
         dim, ent, typ, n = (int(x) for x in v[i:i + 4])
@@ -531,21 +532,23 @@ def _elements(f: _File, c: _Content, start: int) -> int:
             raise f.error(end, f"$Elements ends early (a block announces {n} elements)")
         rows = v[i:i + n * (1 + npe)].reshape(n, 1 + npe)
         i += n * (1 + npe)
-        c.blocks.append(_block41(f, start, c, kind, dim, ent, rows[:, 0], rows[:, 1:]))
+        c.blocks.append(_block41(f, start, block, c, kind, dim, ent, rows[:, 0], rows[:, 1:]))
     if i != len(v):
         raise f.error(end, f"$Elements holds {len(v) - i} numbers more than announced")
     return end
 
 
-def _block41(f: _File, at: int, c: _Content, kind: int, dim: int, ent: int, ids: NDArray,
-             nodes: NDArray) -> tuple[int, int, int, NDArray, NDArray]:
-    """An MSH 4.1 element block (its header at offset ``at``) with its entity's physical
+def _block41(f: _File, at: int, block: int, c: _Content, kind: int, dim: int, ent: int,
+             ids: NDArray, nodes: NDArray) -> tuple[int, int, int, NDArray, NDArray]:
+    """An MSH 4.1 element block (number ``block`` from 0; its header at offset ``at``, or
+    the section's start where the parser does not know it) with its entity's physical
     tag; an entity in several physical groups is noted (:func:`_several_groups`) and takes
     the first. Elements of another dimension than their entity's are refused (they would
     take another entity's physical group: a triangle on curve 1, curve 1's)."""
     if element_dimension(kind) != dim:
-        raise f.error(at, f"an element block of {ELEMENTS[kind][0]}s (dimension "
-                          f"{element_dimension(kind)}) in entity {ent} of dimension {dim}")
+        raise f.error(at, f"element block {block + 1} of $Elements holds "
+                          f"{ELEMENTS[kind][0]}s (dimension {element_dimension(kind)}) in "
+                          f"entity {ent} of dimension {dim}")
     tags = c.entities.get((dim, ent), (0,))
     if len(tags) > 1 and len(ids):
         c.several.append((dim, ent, tags, ids, nodes))
@@ -796,20 +799,10 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
     kept_lines = line_ids[np.asarray(line_tags) != 0]  # the lines that are tagged edges
     if raw.edges is not None and len(kept_lines) == len(raw.edges):
         raw.edge_numbers = np.asarray(kept_lines, dtype=np.int64)
-    point_data = {}
-    for name, (t, v) in c.node_data.items():
-        rows = _rows_of(tags, t, contiguous)
-        if (rows < 0).any():  # a value dropped, a point left NaN: refused
-            raise GmshError(f"$NodeData {name!r} gives a value to node "
-                            f"{int(t[np.argmax(rows < 0)])}, which is not in $Nodes")
-        point_data[name] = _field(f, c, "point", name, v, rows, len(tags))
-    if c.element_data:
-        known = np.concatenate(element_ids) if element_ids else np.empty(0, np.int64)
-        for name, (t, _) in c.element_data.items():
-            unknown = ~np.isin(t, known)
-            if unknown.any():
-                raise GmshError(f"$ElementData {name!r} gives a value to element "
-                                f"{int(t[np.argmax(unknown)])}, which is not in $Elements")
+    # values of nodes (elements) that the file does not hold are left out: Gmsh writes a
+    # view over the whole model beside a mesh of its physical groups only
+    point_data = {name: _field(f, c, "point", name, v, _rows_of(tags, t, contiguous), len(tags))
+                  for name, (t, v) in c.node_data.items()}
     cell_data = {}
     if len(tri_ids) and c.element_data:
         if _first_duplicate(tri_ids) is not None:
