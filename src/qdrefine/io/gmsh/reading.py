@@ -676,6 +676,9 @@ def _data_section(kind: str):
                               else "element")
             v = np.ascontiguousarray(numbers[:, 1:])
         target = c.node_data if kind == "NodeData" else c.element_data
+        saved = tags > 0  # Gmsh 2.2 gives -1 to the nodes of a view not in the file
+        if not saved.all():
+            tags, v = tags[saved], v[saved]
         twice = _first_duplicate(tags)
         if twice is not None:
             what = "node" if kind == "NodeData" else "element"
