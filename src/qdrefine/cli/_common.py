@@ -133,26 +133,25 @@ def scheme_names_list(text: str) -> list[str]:
     return names
 
 
-def non_negative(text: str) -> int:
-    """argparse type: an integer >= 0."""
+def _at_least(text: str, least: int) -> int:
+    """An integer ``>= least`` for argparse, or its error naming that bound."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value}")
+    if value < least:
+        raise argparse.ArgumentTypeError(f"expected a number >= {least}, got {value}")
     return value
+
+
+def non_negative(text: str) -> int:
+    """argparse type: an integer >= 0."""
+    return _at_least(text, 0)
 
 
 def positive(text: str) -> int:
     """argparse type: an integer >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a number >= 1, got {value}")
-    return value
+    return _at_least(text, 1)
 
 
 def similarity_tolerance(parser: argparse.ArgumentParser, what: str) -> None:

@@ -640,15 +640,14 @@ def _number_pieces(pieces: list[tuple], job: _Job
     points = np.empty((len(unique) * job.k, 2), dtype=np.float64)
     for (_, ends, _), lid in zip(tri, lids, strict=True):
         new_points(ends, job.k, lid, points)
-    # an edge sent by one chunk that holds one half-edge of it is on the boundary
-    pieces_per_edge = np.bincount(inverse, minlength=len(unique))
-    lone = [code >= 0 for _, _, code in tri]
-    lone = [mask & (pieces_per_edge[lid] == 1) for mask, lid in zip(lone, lids, strict=True)]
-    boundary = _lone_edges(
-        np.concatenate([code[m] for (_, _, code), m in zip(tri, lone, strict=True)] or [[]]),
-        unique, np.concatenate([lid[m] for lid, m in zip(lids, lone, strict=True)] or [[]]),
-        np.concatenate([ends[m] for (_, ends, _), m in zip(tri, lone, strict=True)]
-                       or [np.empty((0, 4))]), points, job.k)
+    # an edge sent by one piece only, from a chunk that holds one half-edge of it, is on
+    # the boundary
+    codes = np.concatenate([c for _, _, c in tri]) if tri else np.empty(0, dtype=np.int64)
+    alone = (codes >= 0) & (np.bincount(inverse, minlength=len(unique))[inverse] == 1)
+    masks = np.split(alone, np.cumsum(sizes)[:-1]) if tri else []
+    ends = np.concatenate([e[m] for (_, e, _), m in zip(tri, masks, strict=True)]
+                          or [np.empty((0, 4))])
+    boundary = _lone_edges(codes[alone], unique, inverse[alone], ends, points, job.k)
     for k, _, _ in pieces[len(tri):]:  # tagged edges: -1 where no triangle has the edge
         lid = np.searchsorted(unique, k)
         found = lid < len(unique)
@@ -662,9 +661,7 @@ def _lone_edges(lone: NDArray, keys: NDArray[np.int64], lids: NDArray,
     """An edge partition's boundary edges (of one half-edge in the whole mesh): their lone
     codes ``(B,)`` (:func:`_distinct_edges`), keys ``(B,)``, local ids ``(B,)``, ends
     ``(B, 4)`` and new points ``(B, k, 2)``, for :meth:`Level._check_boundary`."""
-    lids = np.asarray(lids, dtype=np.int64)
-    return (np.asarray(lone, dtype=np.int64), keys[lids], lids, ends,
-            points.reshape(-1, k, 2)[lids])
+    return lone, keys[lids], lids, ends, points.reshape(-1, k, 2)[lids]
 
 
 def _boundary_of(result: tuple) -> tuple:

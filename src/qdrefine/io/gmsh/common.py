@@ -21,6 +21,7 @@ ELEMENTS: dict[int, tuple[str, int]] = {
     37: ("quad25", 25), 38: ("quad36", 36), 92: ("hexahedron64", 64),
 }
 
+
 def element_dimension(typ: int) -> int:
     """The dimension of Gmsh element type ``typ`` (a key of :data:`ELEMENTS`)."""
     name = ELEMENTS[typ][0]
