@@ -14,7 +14,6 @@ on the device and, only if there are any (almost never), runs
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
 from types import SimpleNamespace
 
 import numpy as np
@@ -157,13 +156,10 @@ def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: in
     first = tri
     pieces = None if boundary is None else cuda.to_device(np.ascontiguousarray(boundary))
     for level in range(1, levels + 1):
-        cut: list = []
         try:
-            pts, tri, tags, tagged, etags, n_hard = _level(
+            pts, tri, tags, tagged, etags, n_hard, pieces = _level(
                 pts, tri, tags, tagged, etags, tables, strict, level == 1,
-                keep=ends.append if edge_ends else None,
-                numbered=None if pieces is None else partial(_cut, cut, pieces, pts.shape[0],
-                                                             tables.per_edge))
+                keep=ends.append if edge_ends else None, boundary=pieces)
         except InputError as exc:
             raise ValueError(str(exc)) from None
         except RefusedTriangle as exc:  # named by the input triangle, as on the CPU
@@ -173,7 +169,6 @@ def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: in
             raise ValueError(f"level {level}: {exc}" if levels > 1 else str(exc)) from None
         exact.append(n_hard)
         if pieces is not None:
-            pieces = cut[0]
             check_boundary(pts, pieces)
     if levels:
         check_new_points(pts, n, lambda: _smallest(points))
@@ -185,10 +180,6 @@ def _refine_device(points, triangles, scheme: str | Scheme = "7t-qd", levels: in
 
         arrays = tuple(None if a is None else cupy.asarray(a) for a in arrays)
     return DeviceMesh(*arrays, exact_stage=tuple(exact)), ends
-
-
-def _cut(into: list, pieces, n: int, per: int, ed) -> None:
-    into.append(split_boundary(pieces, ed, n, per))
 
 
 def require_gpu() -> None:
@@ -273,19 +264,19 @@ class _Tables:
 
 
 def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: bool,
-           clock=None, keep=None, numbered=None):
+           clock=None, keep=None, boundary=None):
     """One uniform level on device arrays (:func:`qdrefine.refine.refine_arrays`); with
     ``check`` (the input level), a triangle that is not counter-clockwise is refused.
     ``clock(name)``, if given, is called after each pass (:func:`pass_times`);
-    ``keep(ends)``, if given, receives the level's edges on the host; ``numbered(ed)``,
-    if given, the level's :class:`~qdrefine.gpu.numbering.DeviceEdges`."""
+    ``keep(ends)``, if given, receives the level's edges on the host. Returns the new
+    points, triangles, tags, tagged edges and their tags, the number of triangles decided
+    exactly, and ``boundary`` (directed boundary edges ``(B, 2)``, or None) cut at the new
+    points."""
     n, m = pts.shape[0], tri.shape[0]
     per = tab.per_edge
     ed = sort_edges(tri, n)
     if keep is not None:
         keep(ed.ends_host())
-    if numbered is not None:
-        numbered(ed)
     if clock:
         clock("edge numbering")
     n_new = n + per * ed.n_edges
@@ -334,7 +325,9 @@ def _level(pts, tri, tags, tagged, etags, tab: _Tables, strict: bool, check: boo
                 pair = tuple(int(v) for v in tagged[r:r + 1].copy_to_host()[0])
                 raise InputError(f"edge {r} {pair} is not an edge of any triangle")
             k.repeat[blocks(new_etags.shape[0]), THREADS](etags, per + 1, new_etags)
-    return new_pts, children, new_tags, new_edges, new_etags, n_hard
+    if boundary is not None:
+        boundary = split_boundary(boundary, ed, n, per)
+    return new_pts, children, new_tags, new_edges, new_etags, n_hard, boundary
 
 
 def pass_times(points, triangles, scheme: str | Scheme = "7t-qd", strict: bool = True
