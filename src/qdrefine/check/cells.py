@@ -16,8 +16,8 @@ from ..quality import min_angles
 from .edges import Topology
 from .report import Findings
 
-__all__ = ["points", "triangles", "in_range", "coordinates", "orientation", "cell_tags",
-           "tagged_edges", "small_angles"]
+__all__ = ["points", "triangles", "in_range", "coordinates", "misoriented", "orientation",
+           "cell_tags", "tagged_edges", "small_angles"]
 
 
 def points(found: Findings, points: ArrayLike) -> NDArray | None:
@@ -110,6 +110,15 @@ def coordinates(found: Findings, p: NDArray) -> bool:
     return ok
 
 
+def misoriented(triangle: int, vertices, zero: bool) -> str:
+    """The message of a triangle with zero area (``zero``) or clockwise, named by
+    ``triangle`` and its ``vertices``: the words of every refusal of one (``Mesh``, the GPU
+    and the Dask paths)."""
+    named = f"triangle {triangle} {tuple(int(v) for v in vertices)}"
+    return f"{named} has zero area" if zero else \
+        f"{named} is clockwise; triangles must be counter-clockwise with positive area"
+
+
 def orientation(found: Findings, p: NDArray, t: NDArray, flip: bool) -> tuple[bool, bool]:
     """Zero-area and clockwise triangles; flips the clockwise rows of ``t`` when ``flip``.
     True when every triangle is (now) counter-clockwise, and True when none has zero area."""
@@ -117,9 +126,8 @@ def orientation(found: Findings, p: NDArray, t: NDArray, flip: bool) -> tuple[bo
     zero = signs == 0
     if zero.any():
         i = int(np.flatnonzero(zero)[0])
-        found.add("zero-area", f"triangle {found.triangle(i)} {tuple(found.ids(t[i]))} has zero "
-                  "area", np.count_nonzero(zero), triangle=found.triangle(i),
-                  vertices=found.ids(t[i]))
+        found.add("zero-area", misoriented(found.triangle(i), found.ids(t[i]), True),
+                  np.count_nonzero(zero), triangle=found.triangle(i), vertices=found.ids(t[i]))
     cw = signs < 0
     if cw.any():
         i = int(np.flatnonzero(cw)[0])
@@ -130,8 +138,7 @@ def orientation(found: Findings, p: NDArray, t: NDArray, flip: bool) -> tuple[bo
                       "flipped", k, "warning", **where)
             t[cw] = t[cw][:, ::-1]
         else:
-            found.add("clockwise", f"triangle {found.triangle(i)} {tuple(found.ids(t[i]))} is "
-                      "clockwise; triangles must be counter-clockwise with positive area", k,
+            found.add("clockwise", misoriented(found.triangle(i), found.ids(t[i]), False), k,
                       **where)
     return not zero.any() and (flip or not cw.any()), not zero.any()
 

@@ -57,6 +57,7 @@ from numpy.typing import NDArray
 
 from .. import store as mesh_store
 from ..boundaries import first_bad_edge
+from ..check.cells import misoriented
 from ..jit import one_thread
 from ..kernels import emit
 from ..mesh import index_dtype
@@ -869,10 +870,7 @@ def _check_orientation(points: NDArray, local: NDArray, t: NDArray, a: int, path
     signs = orient_signs(points, local)
     if (signs <= 0).any():
         i = int(np.flatnonzero(signs <= 0)[0])
-        what = "has zero area" if signs[i] == 0 else "is clockwise"
-        return 0, a + i, ValueError(f"{path}: triangle {a + i} {tuple(t[i].tolist())} "
-                                    f"{what}; triangles must be counter-clockwise with "
-                                    "positive area")
+        return 0, a + i, ValueError(f"{path}: {misoriented(a + i, t[i], signs[i] == 0)}")
     return None
 
 

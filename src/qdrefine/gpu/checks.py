@@ -14,6 +14,7 @@ from numba import cuda
 from numpy.typing import NDArray
 
 from ..boundaries import first_bad_edge
+from ..check.cells import misoriented
 from ..predicates import COORDINATE_RANGE, below_range, check_coordinates, orient_signs
 from . import kernels as k
 from .numbering import THREADS, blocks
@@ -109,11 +110,7 @@ def check_orientation(points: NDArray, triangles: NDArray) -> None:
     bad = np.flatnonzero(signs <= 0)
     if bad.size:
         t = int(bad[0])
-        corners = tuple(int(v) for v in triangles[t])
-        if signs[t] == 0:
-            raise ValueError(f"triangle {t} {corners} has zero area")
-        raise ValueError(f"triangle {t} {corners} is clockwise; triangles must be "
-                         "counter-clockwise with positive area")
+        raise ValueError(misoriented(t, triangles[t], signs[t] == 0))
 
 
 class BoundaryCrossed(Exception):

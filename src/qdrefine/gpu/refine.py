@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from ..arguments import as_count
 from ..boundaries import boundary_edges, keep_boundary
+from ..check.cells import misoriented
 from ..fields import refine_point_data
 from ..kernels import _frame_tables
 from ..memory import MEMORY_LIMIT_VARIABLE, check_memory, memory_needed
@@ -360,11 +361,8 @@ def _refuse_misoriented(tri, rows: NDArray, labels: NDArray) -> None:
     if not bad.any():
         return
     t = int(rows[bad].min())
-    corners = tuple(int(v) for v in tri[t:t + 1].copy_to_host()[0])
-    if labels[rows == t][0, 3] == -1:
-        raise InputError(f"triangle {t} {corners} has zero area")
-    raise InputError(f"triangle {t} {corners} is clockwise; triangles must be "
-                     "counter-clockwise with positive area")
+    raise InputError(misoriented(t, tri[t:t + 1].copy_to_host()[0],
+                                 labels[rows == t][0, 3] == -1))
 
 
 def _smallest(points) -> float:
