@@ -65,6 +65,20 @@ def test_bad_input_names_the_problem(kwargs, message):
         Mesh(**args)
 
 
+@pytest.mark.parametrize(("triangles", "message"), [
+    ([[0, 2, 1], [0, 2, 0]], r"^triangle 0 \(0, 2, 1\) is clockwise"),
+    ([[0, 2, 0], [0, 2, 1]], r"^triangle 0 \(0, 2, 0\) has zero area"),
+])
+def test_the_first_bad_row_is_named_whichever_its_kind(triangles, message):
+    """A clockwise row before a zero-area one is named first, as the GPU and Dask paths
+    name the first row of either kind (the zero-area one was named first before)."""
+    with pytest.raises(ValueError, match=message):
+        Mesh(SQUARE, triangles)
+    found = check.find(SQUARE, triangles)
+    assert [p.kind for p in found.problems if p.kind in ("clockwise", "zero-area")] == \
+        (["clockwise", "zero-area"] if "clockwise" in message else ["zero-area", "clockwise"])
+
+
 def test_points_as_python_numbers_of_any_kind():
     """Object arrays of numbers (Fractions, Python ints) are numbers (review of the check
     that refuses strings and booleans)."""

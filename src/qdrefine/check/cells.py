@@ -121,25 +121,34 @@ def misoriented(triangle: int, vertices, zero: bool) -> str:
 
 def orientation(found: Findings, p: NDArray, t: NDArray, flip: bool) -> tuple[bool, bool]:
     """Zero-area and clockwise triangles; flips the clockwise rows of ``t`` when ``flip``.
-    True when every triangle is (now) counter-clockwise, and True when none has zero area."""
+    True when every triangle is (now) counter-clockwise, and True when none has zero area.
+
+    Without ``flip`` the kind whose first triangle comes first is reported first, so that
+    ``Mesh`` (which stops at the first error) names the first bad row, as the GPU and Dask
+    paths do."""
     signs = orient_signs(p, t)
     zero = signs == 0
+    cw = signs < 0
+    reports = []
     if zero.any():
         i = int(np.flatnonzero(zero)[0])
-        found.add("zero-area", misoriented(found.triangle(i), found.ids(t[i]), True),
-                  np.count_nonzero(zero), triangle=found.triangle(i), vertices=found.ids(t[i]))
-    cw = signs < 0
+        reports.append((i, "zero-area", misoriented(found.triangle(i), found.ids(t[i]), True),
+                        np.count_nonzero(zero), ""))
     if cw.any():
         i = int(np.flatnonzero(cw)[0])
         k = int(np.count_nonzero(cw))
-        where = {"triangle": found.triangle(i), "vertices": found.ids(t[i])}
         if flip:
-            found.add("clockwise", f"{k} of {len(t)} triangles were clockwise and have been "
-                      "flipped", k, "warning", **where)
-            t[cw] = t[cw][:, ::-1]
+            reports.append((len(t), "clockwise", f"{k} of {len(t)} triangles were clockwise and "
+                            "have been flipped", k, "warning"))
         else:
-            found.add("clockwise", misoriented(found.triangle(i), found.ids(t[i]), False), k,
-                      **where)
+            reports.append((i, "clockwise", misoriented(found.triangle(i), found.ids(t[i]),
+                                                        False), k, ""))
+    for i, kind, message, count, severity in sorted(reports, key=lambda r: r[0]):
+        row = i if i < len(t) else int(np.flatnonzero(cw)[0])
+        found.add(kind, message, count, severity, triangle=found.triangle(row),
+                  vertices=found.ids(t[row]))
+    if flip and cw.any():
+        t[cw] = t[cw][:, ::-1]
     return not zero.any() and (flip or not cw.any()), not zero.any()
 
 
