@@ -5,8 +5,9 @@ from __future__ import annotations
 import operator
 
 import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ["as_count"]
+__all__ = ["as_count", "as_ids"]
 
 
 def as_count(value: object, name: str) -> int:
@@ -20,3 +21,18 @@ def as_count(value: object, name: str) -> int:
     if count < 0:
         raise ValueError(f"{name} must be >= 0, got {count}")
     return count
+
+
+def as_ids(value: object, n: int, what: str, rows: str) -> NDArray[np.int64]:
+    """``value`` as int64 ids of ``n`` ``rows``, flattened; ``ValueError`` naming ``what``
+    otherwise. Only integers in ``0 .. n - 1`` are ids: NumPy would read a boolean mask as
+    the ids 0 and 1 and -1 as the last row."""
+    ids = np.asarray(value)
+    if ids.size and ids.dtype.kind not in "iu":
+        hint = " (a boolean mask? pass np.flatnonzero(mask))" if ids.dtype.kind == "b" else ""
+        raise ValueError(f"{what} must hold integers, got dtype {ids.dtype}{hint}")
+    ids = ids.astype(np.int64).ravel()
+    bad = (ids < 0) | (ids >= n)
+    if bad.any():
+        raise ValueError(f"{what} has id {int(ids[bad][0])}, outside the {n} {rows}")
+    return ids

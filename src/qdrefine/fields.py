@@ -23,6 +23,8 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .arguments import as_ids
+
 __all__ = ["interpolate_point_data", "refine_point_data", "inherit_cell_data", "edge_value",
            "centroid_value"]
 
@@ -77,7 +79,7 @@ def interpolate_point_data(point_data: Mapping[str, ArrayLike], edge_ends: Array
     out = {}
     for name, value in point_data.items():
         v = np.asarray(value)
-        _check_ids(ends, len(v), "edge_ends", f"point_data {name!r}")
+        as_ids(ends, len(v), "edge_ends", f"rows of point_data {name!r}")
         if v.dtype.kind not in "f":
             v = v.astype(np.float64)
         a, b = v[ends[:, 0]], v[ends[:, 1]]
@@ -111,16 +113,6 @@ def inherit_cell_data(cell_data: Mapping[str, ArrayLike], parents: ArrayLike
     out = {}
     for name, value in cell_data.items():
         v = np.asarray(value)
-        _check_ids(p, len(v), "parents", f"cell_data {name!r}")
+        as_ids(p, len(v), "parents", f"rows of cell_data {name!r}")
         out[name] = v[p]
     return out
-
-
-def _check_ids(ids: NDArray, n: int, what: str, of: str) -> None:
-    """``ValueError`` unless ``ids`` are integers in ``0 .. n - 1`` (rows of ``of``): NumPy
-    reads -1 as the last row."""
-    if ids.size and ids.dtype.kind not in "iu":
-        raise ValueError(f"{what} must hold integers, got dtype {ids.dtype}")
-    if ids.size and (ids.min() < 0 or ids.max() >= n):
-        bad = ids[(ids < 0) | (ids >= n)].flat[0]
-        raise ValueError(f"{what} has id {int(bad)}, outside the {n} rows of {of}")

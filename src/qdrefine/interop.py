@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from .arguments import as_ids
 from .io import mesh_of
 from .io._core import RawMesh
 from .io.meshio_formats import meshio_mesh, raw_from_meshio
@@ -106,7 +107,8 @@ def from_skfem(m) -> Mesh:
         raw.cell_tags = np.zeros(len(triangles), dtype=np.int64)
         owner: dict[int, str] = {}
         for tag, name in enumerate(sorted(subdomains), start=1):
-            ids = _ids(subdomains[name], len(triangles), f"subdomain {name!r}", "triangle")
+            ids = as_ids(subdomains[name], len(triangles), f"skfem.MeshTri: subdomain {name!r}",
+                         "triangles")
             taken = ids[raw.cell_tags[ids] != 0]
             if taken.size:  # a cell tag is one per triangle
                 raise ValueError(f"skfem.MeshTri: triangle {int(taken[0])} is in the subdomains "
@@ -120,27 +122,13 @@ def from_skfem(m) -> Mesh:
         facets = np.asarray(m.facets, dtype=np.int64).T
         edges, tags = [], []
         for tag, name in enumerate(sorted(boundaries), start=1):
-            ids = _ids(boundaries[name], len(facets), f"boundary {name!r}", "facet")
+            ids = as_ids(boundaries[name], len(facets), f"skfem.MeshTri: boundary {name!r}",
+                         "facets")
             edges.append(facets[ids])
             tags.append(np.full(len(ids), tag, dtype=np.int64))
             raw.physical_names[(1, tag)] = name
         raw.edges, raw.edge_tags = np.concatenate(edges), np.concatenate(tags)
     return mesh_of(raw)
-
-
-def _ids(value, n: int, what: str, of: str) -> NDArray[np.int64]:
-    """The ids of a scikit-fem subdomain or boundary, checked: integers in ``0 .. n - 1``
-    (a boolean mask read as ids 0 and 1, and -1 as the last one)."""
-    ids = np.asarray(value)
-    if ids.size and ids.dtype.kind not in "iu":
-        raise ValueError(f"skfem.MeshTri: {what} must hold {of} ids (integers), got dtype "
-                         f"{ids.dtype}")
-    ids = ids.astype(np.int64).ravel()
-    bad = (ids < 0) | (ids >= n)
-    if bad.any():
-        raise ValueError(f"skfem.MeshTri: {what} has {of} id {int(ids[bad][0])}, outside "
-                         f"0..{n - 1}")
-    return ids
 
 
 def to_triangulation(mesh: Mesh):
