@@ -145,6 +145,10 @@ def test_compare_json_and_plot(tmp_path, run):
     commas = run("compare", DATA / "two_regions_22.msh", "--levels", "2", "--schemes",
                  "7T-QD,4t-red", "--json")  # commas, any case: the same rows
     assert json.loads(commas.stdout)["rows"] == rows
+    quiet = run("compare", DATA / "two_regions_22.msh", "--levels", "2", "--schemes",
+                "7t-qd", "4t-red", "--json", "-q", "--plot", png)  # asked-for JSON, no note
+    assert (json.loads(quiet.stdout)["rows"], quiet.stderr) == (rows, "")
+    assert run("compare", DATA / "two_regions_22.msh", "--levels", "1", "-q").stdout == ""
 
 
 # error paths ------------------------------------------------------------------------------

@@ -27,8 +27,9 @@ STORE = ".zarr"
 PICTURES = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
 
 
-def setup(parser: argparse.ArgumentParser, quiet: bool = True) -> None:
-    """One-line argument errors (``qdrefine: error: ...``, exit 2) and ``--quiet``."""
+def setup(parser: argparse.ArgumentParser, quiet: bool = True, quiet_also: str = "") -> None:
+    """One-line argument errors (``qdrefine: error: ...``, exit 2) and ``--quiet`` (whose
+    help adds ``quiet_also``, what it still prints)."""
     prog = parser.prog
 
     def error(message: str) -> None:
@@ -38,7 +39,8 @@ def setup(parser: argparse.ArgumentParser, quiet: bool = True) -> None:
     parser.error = error  # type: ignore[method-assign]
     if quiet:
         parser.add_argument("-q", "--quiet", action="store_true",
-                            help="print nothing but errors and warnings; no progress bar")
+                            help=f"print nothing but errors and warnings{quiet_also}; no "
+                                 "progress bar")
 
 
 def add_mesh_in_out(parser: argparse.ArgumentParser, options: Callable[[], None]) -> None:

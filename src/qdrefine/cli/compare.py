@@ -13,7 +13,7 @@ HELP = "refine with several schemes level by level: min angle, mean, similarity 
 
 
 def add_args(parser: argparse.ArgumentParser) -> None:
-    _common.setup(parser)
+    _common.setup(parser, quiet_also=" (and the JSON that --json asks for)")
     parser.epilog = ("Similarity classes: triangles whose two smallest angles agree to "
                      "within --tolerance degrees have the same shape (mirror images "
                      "included; cells of that side in the plane of the two angles, touching "
