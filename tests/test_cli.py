@@ -235,6 +235,7 @@ def test_bad_input_through_the_entry_point(tmp_path):
     # silently accepted
     (["quality", "IN.msh", "--tolerance", "1e-20"], "expected a number from 1e-12 to 180"),
     (["compare", "IN.msh", "--schemes", ","], "expected scheme names, got ','"),
+    (["demo", "OUT", "--levels", "0"], "argument --levels: expected a number >= 1, got 0"),
     (["info", "IN.msh", "--bogus"], "unrecognized arguments: --bogus (see 'qdrefine info "
                                     "--help')"),
     (["frobnicate"], "invalid choice: 'frobnicate'"),

@@ -29,8 +29,8 @@ def add_args(parser: argparse.ArgumentParser) -> None:
                      "OUTDIR/report.txt (quality report).")
     parser.add_argument("outdir", metavar="OUTDIR", nargs="?", default="qdrefine-demo",
                         help="directory for the files (default ./qdrefine-demo; created)")
-    parser.add_argument("--levels", type=_common.non_negative, default=None, metavar="N",
-                        help="refinement levels (default 2; not with --afem)")
+    parser.add_argument("--levels", type=_common.positive, default=None, metavar="N",
+                        help="refinement levels, at least 1 (default 2; not with --afem)")
     parser.add_argument("--afem", action="store_true",
                         help="instead: adaptive finite elements on the Gmsh L-shape (Poisson, "
                              "scikit-fem P1, residual estimator, Doerfler 0.5) with 7t-qd, "
