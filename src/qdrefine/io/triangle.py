@@ -124,6 +124,24 @@ class _Lines:
             raise self.error(f"expected numbers in {what}, got {' '.join(words)!r}",
                              line) from None
 
+    def tag(self, line: int, word: str, what: str) -> int:
+        """The integer tag ``word``: an integer literal exactly (any int64), or a number
+        with an integral value under 2**53 in magnitude (where float64 text names one integer:
+        Triangle itself reads attributes as floating-point numbers)."""
+        try:
+            value = int(word)
+        except ValueError:
+            try:
+                number = float(word)
+            except ValueError:
+                raise self.error(f"expected a number in {what}, got {word!r}", line) from None
+            if not (np.isfinite(number) and number == int(number) and abs(number) < 2**53):
+                raise self.error(f"{what} {word} is not an integer tag", line) from None
+            value = int(number)
+        if not -2**63 <= value < 2**63:
+            raise self.error(f"{what} {word} is beyond int64", line)
+        return value
+
     def header(self, what: str, count: int, defaults: tuple[int, ...]) -> list[int]:
         line, words = self.next(f"the {what} header", 1)
         values = self.ints(line, words[:count], f"the {what} header")
@@ -194,11 +212,7 @@ def _read_ele(eles: _Lines, raw: RawMesh, node_path: Path) -> None:
         triangles[i] = eles.ints(line, words[1:4], "the triangle's vertices")
         lines[i] = line
         if tags is not None:
-            attr = eles.floats(line, words[1 + per:2 + per], "the regional attribute")[0]
-            if not np.isfinite(attr) or attr != int(attr) or abs(attr) >= 2**62:
-                raise eles.error(f"the regional attribute {words[1 + per]} is not an integer "
-                                 "tag", line)
-            tags[i] = int(attr)
+            tags[i] = eles.tag(line, words[1 + per], "the regional attribute")
     if m == 0:
         raw.problem("no-triangles", "holds no triangles", 1)
         return
@@ -231,8 +245,8 @@ def _read_poly(poly: _Lines, raw: RawMesh) -> None:
     rows = []
     for i in range(k):
         line, words = poly.next(f"segment {i + 1} of {k}", 3 + (k_mark > 0))
-        values = poly.ints(line, words[:3 + (k_mark > 0)], "the segment")
-        marker = values[3] if k_mark > 0 else 0
+        values = poly.ints(line, words[:3], "the segment")
+        marker = poly.tag(line, words[3], "the boundary marker") if k_mark > 0 else 0
         if marker != 0:
             rows.append((values[1] - first, values[2] - first, line, marker))
     if not rows:
