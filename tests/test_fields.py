@@ -12,7 +12,7 @@ import qdrefine
 from meshes import jittered_grid
 from qdrefine import Mesh, coarsen, examples, refine, scheme_names
 from qdrefine.cli import main
-from qdrefine.fields import inherit_cell_data, interpolate_point_data
+from qdrefine.fields import centroid_value, edge_value, inherit_cell_data, interpolate_point_data
 
 
 @settings(max_examples=20, deadline=None, derandomize=True)
@@ -136,3 +136,36 @@ def test_helpers_refuse_ids_outside_the_fields():
         inherit_cell_data({"c": np.array([1, 2])}, [-1])
     assert interpolate_point_data({"u": np.array([1.0, 4.0])}, [[0, 1]], 2)["u"].tolist() == \
         [2.0, 3.0]
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.lists(st.floats(allow_nan=False, allow_infinity=False, width=64), min_size=3,
+                max_size=3), st.sampled_from([(0, 1), (0, 2), (1, 2)]))
+def test_new_values_do_not_overflow_where_the_old_ones_did_not(abc, jk):
+    """A constant field of 1e308 became inf at every new point: 2 a + b overflowed
+    (review). Where the formula overflows it is computed on the values scaled by 1/4 (a
+    convex combination lies between its ends); elsewhere it is the formula, unchanged."""
+    a, b, c = (np.array([v]) for v in abc)
+    j, k = jk
+    for got, ends in ((edge_value(a, b, j, k), abc[:2]), (centroid_value(a, b, c), abc)):
+        assert np.isfinite(got[0])
+        with np.errstate(over="ignore"):  # the spacing of the largest float is inf
+            ulps = 4 * np.spacing(max(abs(v) for v in ends))  # roundings of the formula
+            assert min(ends) - ulps <= got[0] <= max(ends) + ulps
+    plain = {(0, 1): lambda a, b: (a + b) * 0.5, (0, 2): lambda a, b: (2.0 * a + b) / 3.0,
+             (1, 2): lambda a, b: (a + 2.0 * b) / 3.0}[jk]
+    with np.errstate(over="ignore"):
+        want = plain(a, b)
+    if np.isfinite(want).all():
+        assert edge_value(a, b, j, k)[0] == want[0]
+    big = np.full(4, np.finfo(np.float64).max)
+    assert (edge_value(big, big, 0, 2) == big).all()
+    assert (centroid_value(-big, -big, -big) == -big).all()
+
+
+def test_a_field_of_1e308_stays_finite_through_refinement():
+    mesh = examples.square(3)
+    mesh = mesh.replace(point_data={"u": np.full(mesh.n_points, 1e308)})
+    for kwargs in ({}, {"marked": [0]}):
+        assert (refine(mesh, "7t-qd", **kwargs).point_data["u"] == 1e308).all()
+    assert (refine(mesh, "4t-le").point_data["u"] == 1e308).all()

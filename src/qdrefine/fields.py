@@ -33,19 +33,41 @@ def edge_value(a: NDArray, b: NDArray, j: int, k: int) -> NDArray:
     """A field's value at point ``j`` of ``k`` on the segments from values ``a`` to ``b``:
     the kernels' formula for the points themselves, so a linear field stays exact to
     rounding. Fields narrower than float64 are computed in float64 (``2 a + b`` of two
-    float16 values of 60000 overflowed) and rounded once when stored."""
-    a, b = _wide(a), _wide(b)
-    if k == 1:
-        return (a + b) * 0.5
-    if k != 2:
+    float16 values of 60000 overflowed) and rounded once when stored; values whose sums
+    overflow float64 (near 1e308) are computed scaled by a power of two, which gives the
+    same rounding."""
+    if k not in (1, 2):
         raise ValueError(f"k (new points per edge) must be 1 or 2, got {k}")
-    return (2.0 * a + b) / 3.0 if j == 0 else (a + 2.0 * b) / 3.0
+    if k == 1:
+        return _scaled_if_overflowing(lambda a, b: (a + b) * 0.5, a, b)
+    if j == 0:
+        return _scaled_if_overflowing(lambda a, b: (2.0 * a + b) / 3.0, a, b)
+    return _scaled_if_overflowing(lambda a, b: (a + 2.0 * b) / 3.0, a, b)
 
 
 def centroid_value(a: NDArray, b: NDArray, c: NDArray) -> NDArray:
     """A field's value at the centroid of the points with values ``a, b, c`` (the mean;
-    narrow floats computed in float64, as :func:`edge_value`)."""
-    return (_wide(a) + _wide(b) + _wide(c)) / 3.0
+    narrow floats and overflowing sums computed as in :func:`edge_value`)."""
+    return _scaled_if_overflowing(lambda a, b, c: (a + b + c) / 3.0, a, b, c)
+
+
+def _scaled_if_overflowing(formula, *values: NDArray) -> NDArray:
+    """``formula(*values)`` (narrow floats widened to float64), with the entries that
+    overflow from finite values computed again on the values scaled by 1/4 and scaled back:
+    scaling by a power of two is exact, so the result is the correctly scaled one."""
+    values = tuple(_wide(v) for v in values)
+    with np.errstate(over="ignore"):
+        out = formula(*values)
+    if out.dtype.kind not in "fc":
+        return out
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(out)
+        for v in values:
+            bad &= np.isfinite(v)
+    if bad.any():
+        out = np.array(out)
+        out[bad] = formula(*(v[bad] * 0.25 for v in values)) * 4.0
+    return out
 
 
 def _wide(v: NDArray) -> NDArray:
