@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import warnings
@@ -992,6 +993,23 @@ def test_an_hdf5_dataset_of_another_size_than_the_xml_says_is_refused(tmp_path):
         f"qdrefine: error: {tmp_path / 'in.xdmf'}: the data item data.h5:/data0 has "
         'Dimensions "3 2", but the HDF5 dataset holds 9 x 3 values (a replaced or '
         "mismatched HDF5 file)\n")
+
+
+def test_an_xdmf_file_read_through_a_link_is_checked_against_the_data_read(tmp_path):
+    """Through ``dir/link.xdmf -> ../other/real.xdmf`` the checks looked at
+    ``dir/real.h5`` while meshio reads ``other/real.h5``: a mismatched file there was read
+    (review). The checks look where meshio reads, beside the file linked to."""
+    (tmp_path / "dir").mkdir()
+    (tmp_path / "other").mkdir()
+    qdrefine.write(tmp_path / "other" / "real.xdmf", examples.square(3))
+    shutil.copy(tmp_path / "other" / "real.h5", tmp_path / "dir" / "real.h5")
+    qdrefine.write(tmp_path / "other" / "small.xdmf", examples.square(2))
+    (tmp_path / "other" / "small.h5").replace(tmp_path / "other" / "real.h5")
+    (tmp_path / "dir" / "link.xdmf").symlink_to("../other/real.xdmf")
+    for path in (tmp_path / "other" / "real.xdmf", tmp_path / "dir" / "link.xdmf"):
+        with pytest.raises(ValueError, match="a replaced or mismatched HDF5 file|written by "
+                                             "another run"):
+            qdrefine.read(path)
 
 
 @pytest.mark.parametrize("name, refused", [

@@ -89,7 +89,15 @@ def heavy_data_files(path: str | Path) -> list[Path]:
         text = path.read_bytes()
     except OSError:
         return []
-    return [path.parent / name for name in dict.fromkeys(n for n, _, _ in _heavy_items(text))]
+    folder = _folder(path)
+    return [folder / name for name in dict.fromkeys(n for n, _, _ in _heavy_items(text))]
+
+
+def _folder(path: Path) -> Path:
+    """The folder of the heavy-data files of the XDMF file ``path``: that of the file it
+    resolves to, as meshio reads them (through a link from another folder, the files
+    beside the link are not the ones read)."""
+    return path.resolve().parent
 
 
 def _check_heavy_data(path: Path) -> None:
@@ -104,8 +112,9 @@ def _check_heavy_data(path: Path) -> None:
     for name, _, _ in _heavy_items(text, "Binary"):
         _check_binary_file(path, name)
     items = _heavy_items(text)
+    folder = _folder(path)
     for name in dict.fromkeys(n for n, _, _ in items):
-        h5_path = path.parent / name
+        h5_path = folder / name
         if h5_path.exists() and not h5_path.is_file():
             raise OSError(f"{h5_path}: not a regular file (the heavy data of {path.name}; a "
                           "FIFO or device is not read)")
@@ -117,7 +126,7 @@ def _check_heavy_data(path: Path) -> None:
     for name, dataset, dimensions in items:
         try:
             size = int(np.prod([int(d) for d in dimensions.split()]))
-            with h5py.File(path.parent / name, "r") as h5:
+            with h5py.File(folder / name, "r") as h5:
                 shape = h5[dataset].shape
         except (ValueError, KeyError, OSError):
             continue  # no or odd Dimensions, or a damaged file: the reader says what is wrong
@@ -133,7 +142,7 @@ def _check_binary_file(path: Path, name: str) -> None:
     working directory (as meshio writes it): a regular file (a FIFO would hang the
     reader); refused when it is not there but next to the XDMF file, or when the name
     leads to two different files from the two places (which one is meant is unknown)."""
-    opened, beside = Path(name), path.parent / name
+    opened, beside = Path(name), _folder(path) / name
     for candidate in (opened, beside):
         if candidate.exists() and not candidate.is_file():
             raise OSError(f"{candidate}: not a regular file (a binary data item of "
@@ -159,7 +168,7 @@ def _check_set(path: Path) -> None:
             found = _SET.search(f.read(256))
     except OSError:
         return  # the reader says what is wrong
-    h5_path = path.with_suffix(".h5")
+    h5_path = path.resolve().with_suffix(".h5")  # as read: beside the file linked to
     if found is None or not h5_path.is_file():
         return
     try:
