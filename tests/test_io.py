@@ -375,6 +375,11 @@ BAD_TRIANGLE = {
                                "an integer tag"),
     "tag beyond int64": (".ele", ELE.replace("5 7\n", f"5 {2**63}\n", 1),
                          f"sq.ele:2: the regional attribute {2**63} is beyond int64"),
+    # Python's int() read 1_0 as 10 and Arabic-Indic digits as digits (review)
+    "underscore": (".ele", ELE.replace("1 1 2 5 7", "1 1 2 5 1_0"),
+                   "sq.ele:2: expected a number, got '1_0'"),
+    "other digits": (".node", NODE.replace("2 1 0 1", "2 \u0661 0 1"),
+                     "sq.node:4: expected a number, got '\u0661'"),
     "marker": (".poly", POLY.replace("1 1 2 3", "1 1 2 x"),
                "sq.poly:3: expected a number in the boundary marker, got 'x'"),
     "no triangles": (".ele", "0 3 0\n", "sq.ele: holds no triangles"),

@@ -89,6 +89,10 @@ class _Lines:
         self.rows: list[tuple[int, list[str]]] = []
         for number, line in enumerate(text.splitlines(), start=1):
             words = line.split("#", 1)[0].split()
+            for word in words:  # Python reads 1_0 as 10 and other scripts' digits as
+                # digits; Triangle's C reader does neither
+                if not word.isascii() or "_" in word:
+                    raise self.error(f"expected a number, got {word[:40]!r}", number)
             if words:
                 self.rows.append((number, words))
         self.pos = 0
