@@ -314,6 +314,31 @@ def test_closure_and_boundary_of_the_shaded_region():
         assert ex.ratio(x[inside], y[inside], reading).min() >= e.lower
 
 
+@pytest.mark.parametrize("triangle, curve, attained", [
+    ([(0, 0), (185, 0), (82, 48)], 3, True),  # on the II/III arc: rule 4 keeps Case III
+    ([(0, 0), (51, 0), (25, 15)], 2, False),  # on the I/III arc: rule 3 gives Case I
+    ([(0, 0), (13, 0), (6, 4)], None, False),  # the corner I-III / II-III
+])
+def test_extrema_are_attained_only_where_the_tie_rules_keep_the_compared_fans(
+        triangle, curve, attained):
+    """The worst ratios were called attained at the corner I-III / II-III, where 7T-QD and
+    7T-D split alike (ratio 1; review). Triangles of integer coordinates exactly on the arcs
+    and the corner, refined by the real schemes, against the closure's continued ratio."""
+    from qdrefine.diagram import extrema as ex
+
+    p = np.array(triangle, dtype=float)
+    x, y = p[2] / p[1, 0]
+    ours = {s: partition(p, s) for s in ("7t-qd", "7t-d")}
+    real = (quality.min_angles(*ours["7t-qd"]).min() / quality.min_angles(*ours["7t-d"]).min())
+    closure = float(ex.ratio(np.array([x]), np.array([y]), "seven")[0])
+    assert closure < 0.999  # the fans compared differ there
+    assert (abs(real - closure) < 1e-12) == attained and (real == 1.0) != attained
+    where = ex.BOUNDARY[curve].name if curve is not None else "corner I-III / II-III"
+    assert (where in ex.ATTAINED_ON) == attained
+    assert (ex.Extremum("seven", "ratio", "min", closure, 0.0, (x, y), where, 0).attained
+            == attained)
+
+
 def test_interval_enclosures_contain_the_point_values():
     from qdrefine.diagram import extrema as ex
 

@@ -13,8 +13,11 @@ four curves that meet at four corners::
     II/III (x - 6/5)^2 + y^2 = 16/25      from (6/13, 4/13)      to (2/5, 0)
 
 (:data:`BOUNDARY`; the circles are decision forms of :mod:`qdrefine.schemes`, checked against
-:func:`qdrefine.diagram.decision_arcs` by the tests). On the closure both schemes keep the fan
-of the interior (7T-QD: ``O``, 7T-D: ``D``), so the ratio is continuous there.
+:func:`qdrefine.diagram.decision_arcs` by the tests). The ratio is that of the interior's fans
+(7T-QD: ``O``, 7T-D: ``D``) extended continuously to the closure. Triangles on the boundary
+have those fans only where the tie rules keep them (:data:`ATTAINED_ON`); elsewhere an
+extremum on the boundary is an infimum (or supremum) that triangles approach but no triangle
+reaches.
 
 Angles are used *normalized*, ``theta / y``: every angle of a stencil triangle is
 ``atan2(|k| y, d(x, y))`` with a constant ``k`` and ``d = A + B x + C (x^2 + y^2)``, so
@@ -50,7 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..stencil import FIXED_7T, SEVEN, fan
 
-__all__ = ["READINGS", "BOUNDARY", "CORNERS", "Extremum", "reading_triangles",
+__all__ = ["READINGS", "BOUNDARY", "CORNERS", "ATTAINED_ON", "Extremum", "reading_triangles",
            "normalized_angles", "angles", "ratio", "gap", "in_closure", "worst_ratio",
            "worst_ratios", "largest_gap"]
 
@@ -109,6 +112,15 @@ BOUNDARY: tuple[Curve, ...] = (
     Curve("I/III: (x-1/3)^2 + y^2 = 1/9", 1 / 3, 1 / 3, math.pi / 3, math.acos(5 / 13)),
     Curve("II/III: (x-6/5)^2 + y^2 = 16/25", 1.2, 0.8, math.pi - math.acos(12 / 13), math.pi),
 )
+
+#: Where on the closure the triangles have the interior's fans themselves, so that an
+#: extremum there is attained, by the tie rules of ``docs/schemes.md``: the interior; the
+#: ``S`` arc (7T-D's fans ``O`` and ``D`` are both Delaunay there and rule 6 takes ``D``);
+#: the ``II/III`` arc (rule 4 keeps 7T-QD's Case III). Not on the base (degenerate
+#: triangles) nor on the ``I/III`` arc and its corners (rule 3 gives 7T-QD's Case I, and
+#: 7T-D's first Delaunay fan there is the same fan ``B``: ratio 1). ``tests/test_diagram.py``
+#: checks the arcs with triangles of integer coordinates on them.
+ATTAINED_ON: tuple[str, ...] = ("interior", BOUNDARY[1].name, BOUNDARY[3].name)
 
 
 def reading_triangles(reading: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -240,12 +252,13 @@ class Extremum:
         ``"ratio"`` (7T-QD / 7T-D min angle) or ``"gap"`` (7T-D - 7T-QD min angle, degrees).
     sense : {"min", "max"}
     value : float
-        The extremum found at a point of the closure (attained).
+        The extremum found at a point of the closure (the value there of the interior's
+        fans, continued to the boundary: attained by a triangle only when :attr:`attained`).
     certified : float
         The other end from interval branch and bound (below ``value`` for a minimum, above
         for a maximum).
     point : (float, float)
-        Where ``value`` is attained.
+        Where ``value`` is found.
     where : str
         The boundary curve or corner of ``point`` ("interior" if none).
     boxes : int
@@ -268,6 +281,13 @@ class Extremum:
     @property
     def upper(self) -> float:
         return self.value if self.sense == "min" else self.certified
+
+    @property
+    def attained(self) -> bool:
+        """Whether a triangle at :attr:`point` has the partitions compared
+        (:data:`ATTAINED_ON`); if not, :attr:`value` is an infimum (a supremum for a gap)
+        that triangles approach without reaching it."""
+        return self.where in ATTAINED_ON
 
     @property
     def bound(self) -> float:

@@ -60,11 +60,12 @@ class DiagramResult:
             "worst_qd_over_d_min_angle_bound": self.worst["pentagon"].bound,
             "worst_qd_over_d_by_reading": {
                 r: {"value": e.value, "lower": e.lower, "bound": e.bound,
-                    "point": list(e.point), "where": e.where, "reading": READINGS[r][0]}
+                    "point": list(e.point), "where": e.where, "attained": e.attained,
+                    "reading": READINGS[r][0]}
                 for r, e in self.worst.items()},
             "largest_d_minus_qd_min_angle_deg": {
                 r: {"value": e.value, "upper": e.upper, "bound": e.bound,
-                    "point": list(e.point), "where": e.where}
+                    "point": list(e.point), "where": e.where, "attained": e.attained}
                 for r, e in self.gaps.items()},
             "error_bound": self.error_bound,
             "errors": {k: self.errors[k] / self.diagram_area for k in keys},
@@ -87,9 +88,11 @@ class DiagramResult:
                 "error_bound": "largest error estimate of any fraction (exact arc regions: "
                                "float rounding, 1e-14; others: summed |K15 - G7|)",
                 "worst_ratio": "certified: every boundary curve and corner of the closed "
-                               "shaded region sampled and polished by golden section (an "
-                               "attained value, upper bound), interval branch and bound over "
-                               "the whole closure (lower bound); bound = upper - lower",
+                               "shaded region sampled and polished by golden section (a "
+                               "value of the closure, upper bound; 'attained' says whether "
+                               "a triangle there has the partitions compared), interval "
+                               "branch and bound over the whole closure (lower bound); "
+                               "bound = upper - lower",
                 "angle_measure": "the same fractions under the uniform measure in the two "
                                  "smallest angles (angle at N, angle at M); total pi^2/12",
             },

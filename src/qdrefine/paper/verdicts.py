@@ -173,7 +173,8 @@ def _worst_rows(m: Measurements, claims: dict) -> list[Claim]:
         elif math.floor(worse) == p:
             tags.append(f"truncates to {p:g}% (rounds to {round(worse):g}%)")
         tags.append(f"{'within' if e.value >= limit else 'beyond'} {p:g}%")
-        parts.append(f"{r}: {e.value:.10f} ({worse:.4f}% worse, {e.where}, bound "
+        reached = "" if e.attained else ", an infimum no triangle reaches"
+        parts.append(f"{r}: {e.value:.10f} ({worse:.4f}% worse, {e.where}{reached}, bound "
                      f"{e.bound:.0e}; {', '.join(tags)})")
     lit = m.res.worst[literal]
     verdict = "confirmed" if lit.value >= limit else "wrong"
