@@ -253,7 +253,8 @@ def format_quality(d: dict[str, Any]) -> str:
         f"{'min angle < 20 deg':<25} {d['below_20_degrees']}",
         f"{'max angle > 120 deg':<25} {d['above_120_degrees']}",
         f"{'similarity classes':<25} {d['similarity_classes']} "
-        f"(two smallest angles equal within {d['similarity_tolerance_degrees']:g} deg)",
+        f"(two smallest angles in cells of {d['similarity_tolerance_degrees']:g} deg, "
+        "touching cells joined)",
         "",
         "minimum-angle histogram (degrees)",
     ]

@@ -60,7 +60,8 @@ def run(args: argparse.Namespace) -> int:
                                  args.tolerance, "rows": rows}))
         elif not args.quiet:
             print(report.format_compare(rows))
-            print(f"similarity classes: two smallest angles within {args.tolerance:g} degrees")
+            print(f"similarity classes: two smallest angles in cells of {args.tolerance:g} "
+                  "degrees, touching cells joined")
         if args.plot:
             levels = f"{args.levels} level{'s' if args.levels != 1 else ''}"
             _common.note_written(args.plot, f"{len(schemes)} schemes over {levels}", args)
