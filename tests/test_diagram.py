@@ -359,3 +359,15 @@ def test_a_tolerance_below_the_rounding_floor_is_refused(tol):
     estimates stop falling at about 3e-14."""
     with pytest.raises(ValueError, match="tol must be at least 1e-14"):
         dg.region_area("C2", method="quadrature", tol=tol)
+
+
+@pytest.mark.parametrize("x, y", [(0.7, 0.3), (0.2, 0.99), (0.3, 0.0), (-0.1, 0.5)])
+def test_partition_measure_refuses_points_outside_the_half(x, y):
+    """Outside H the fan was decided on the canonical triangle but measured on the stencil
+    as given: (0.7, 0.3) gave 16.09 degrees where its partition has 23.20 (review)."""
+    with pytest.raises(ValueError, match=r"point 0 .* is outside the diagram's half H"):
+        dg.partition_measure([x], [y], "7t-qd", "min", over="all")
+    p = np.array([[0.0, 0.0], [1.0, 0.0], [0.3, 0.5]])
+    (u, v), = dg.to_diagram(p)
+    assert dg.partition_measure([u], [v], "7t-qd", "min", over="all")[0] == pytest.approx(
+        quality.min_angles(*partition(p, "7t-qd")).min(), abs=1e-9)

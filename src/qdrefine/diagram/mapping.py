@@ -176,6 +176,9 @@ def partition_measure(x: ArrayLike, y: ArrayLike, scheme: str, measure: str = "m
     Parameters
     ----------
     x, y : (K,) float
+        Diagram points, in the half ``H`` (:func:`inside_half`; :func:`to_diagram` maps a
+        triangle there): the fan is decided on the canonical triangle, so elsewhere the
+        stencil measured would not be the one decided on, and such points are refused.
     scheme : {"7t-qd", "7t-le", "7t-d"}
     measure : {"min", "mean"}
         Smallest angle of the triangles, or the mean of their smallest angles.
@@ -186,6 +189,12 @@ def partition_measure(x: ArrayLike, y: ArrayLike, scheme: str, measure: str = "m
         raise ValueError(f"unknown measure {measure!r}; choose one of: {', '.join(MEASURES)}")
     if over not in OVER:
         raise ValueError(f"unknown over {over!r}; choose one of: {', '.join(OVER)}")
+    outside = ~inside_half(np.atleast_1d(x), np.atleast_1d(y))
+    if outside.any():  # measured wrong before, without a word (review)
+        i = int(np.flatnonzero(outside)[0])
+        raise ValueError(f"point {i} ({np.atleast_1d(x)[i]!r}, {np.atleast_1d(y)[i]!r}) is "
+                         "outside the diagram's half H (0 <= x <= 1/2, y > 0, "
+                         "(x-1)^2 + y^2 <= 1); map a triangle there with to_diagram")
     fans = scheme_fans(x, y, scheme, exact=exact)
     x = np.atleast_1d(np.asarray(x, dtype=np.float64))
     y = np.atleast_1d(np.asarray(y, dtype=np.float64))
