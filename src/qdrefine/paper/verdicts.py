@@ -277,9 +277,11 @@ def claim_rows(m: Measurements, claims: dict = PAPER_CLAIMS) -> list[Claim]:
                       f"({pct(res.extra_areas['qd_mean_above_d'] / res.diagram_area, 3)} of H)",
                       "confirmed" if mean_above > 0.5 else "wrong",
                       f"{'a majority' if mean_above > 0.5 else 'a minority'} of the shaded "
-                      "region (area, quadrature); the mean over all seven triangles orders "
-                      f"them the same way at {pct(m.extra['mean_all_agrees'], 2)} of its grid "
-                      "points"))
+                      "region (area, quadrature); read as the mean over all seven triangles "
+                      "the claim is the same one, since the four corner triangles are shared "
+                      "(a sum of the same four values added to both sides: the two orders "
+                      f"agree at {pct(m.extra['mean_all_agrees'], 2)} of its grid points, "
+                      "a check of the sampling, not evidence)"))
     c1 = s["C1"]
     le_lower = float((s["mean 7t-le"][c1] < s["mean 7t-qd"][c1]).mean())
     rows.append(Claim("shares", f"\"{claims['le_region_mean_lower']}\"",
