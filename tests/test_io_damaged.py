@@ -460,3 +460,47 @@ def test_heavy_data_that_is_not_a_regular_file_is_named(tmp_path):
     path.write_text(text.replace(f"{h5}:", "/dev/zero:"))
     with pytest.raises(OSError, match="/dev/zero: not a regular file"):
         qdrefine.read(path)
+
+
+def _vtu_with_points_block(points: int, block: bytes) -> bytes:
+    """A compressed VTU whose Points array (UInt8, 3 components, ``points`` rows) is the
+    appended ``block`` (header and zlib data)."""
+    xml = ('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
+           'byte_order="LittleEndian" header_type="UInt64" '
+           'compressor="vtkZLibDataCompressor">\n<UnstructuredGrid>\n'
+           f'<Piece NumberOfPoints="{points}" NumberOfCells="1">\n<Points>\n'
+           '<DataArray type="UInt8" Name="Points" NumberOfComponents="3" format="appended" '
+           'offset="0"/>\n</Points>\n<Cells>\n'
+           '<DataArray type="Int64" Name="connectivity" format="appended" offset="0"/>\n'
+           '<DataArray type="Int64" Name="offsets" format="appended" offset="0"/>\n'
+           '<DataArray type="UInt8" Name="types" format="appended" offset="0"/>\n'
+           '</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding="raw">\n_')
+    return xml.encode() + block + b"\n</AppendedData>\n</VTKFile>\n"
+
+
+@pytest.mark.parametrize("points, declared, message", [
+    (5, None, "byte .*: DataArray 'Points' decompresses to more than the 15 bytes its rows "
+              "take"),
+    (10_000, 45, "compressed block 0 of DataArray 'Points' holds more than the 45 bytes its "
+                 "header declares"),
+])
+def test_a_compressed_vtu_block_cannot_expand_past_its_sizes(tmp_path, points, declared,
+                                                            message):
+    """A 65 kB file whose Points block decompresses to 64 MiB took 3.6 GB and 12 s before
+    its sizes were checked (review): the block stops at the bytes its rows take or its
+    header declares, whichever is less."""
+    import tracemalloc
+    import zlib
+
+    body = zlib.compress(bytes(1 << 26), 9)
+    size = 1 << 26 if declared is None else declared
+    head = struct.pack("<4Q", 1, size, size, len(body))
+    (tmp_path / "bomb.vtu").write_bytes(_vtu_with_points_block(points, head + body))
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match=message):
+            qdrefine.read(tmp_path / "bomb.vtu")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 8 << 20  # the file is 65 kB; 64 MiB were made before

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 import xml.etree.ElementTree as ET
 import zlib
 from pathlib import Path
@@ -103,16 +104,23 @@ def _read(path: Path, data: bytes) -> RawMesh:
     piece = pieces[0]
     base = underscore + 1
 
-    def array(item: ET.Element) -> NDArray:
+    def array(item: ET.Element, rows: int | None) -> NDArray:
+        """The values of ``item``; a compressed block decompresses to at most the bytes of
+        its ``rows`` (None: :data:`_UNSIZED_LIMIT`), so that a small file cannot expand
+        into gigabytes before its sizes are checked."""
         if item.get("format") != "appended":
             raise _Fallback
         kind = _VTK_TYPES.get(item.get("type", ""))
         if kind is None:
             raise ValueError(f"DataArray {item.get('Name')!r}: unknown type {item.get('type')}")
         offset = base + int(item.get("offset", "-1"))
-        raw = _block(data, offset, header, compressor is not None)
-        a = np.frombuffer(raw, dtype=kind)
         comps = int(item.get("NumberOfComponents", "1"))
+        limit = _UNSIZED_LIMIT if rows is None else \
+            max(rows, 0) * max(comps, 1) * np.dtype(kind).itemsize
+        name = item.get("Name")
+        raw = _block(data, offset, header, compressor is not None, limit,
+                     f"DataArray {name!r}" if name else "an unnamed DataArray")
+        a = np.frombuffer(raw, dtype=kind)
         if comps < 1 or len(a) % comps:
             raise ValueError(f"byte {offset}: DataArray {item.get('Name')!r} holds {len(a)} "
                              f"values, not a multiple of {comps} components")
@@ -123,24 +131,24 @@ def _read(path: Path, data: bytes) -> RawMesh:
     points_item = piece.find("./Points/DataArray")
     if points_item is None:
         raise ValueError("no Points")
-    points = array(points_item).astype(np.float64)
+    points = array(points_item, n).astype(np.float64)
     if points.ndim != 2 or len(points) != n:
         raise ValueError(f"Points: expected {n} points")
     cells = {item.get("Name"): item for item in piece.findall("./Cells/DataArray")}
     if {"connectivity", "offsets", "types"} - set(cells):
         raise ValueError("Cells needs connectivity, offsets and types")
-    conn = array(cells["connectivity"]).astype(np.int64).ravel()
-    offsets = array(cells["offsets"]).astype(np.int64).ravel()
-    types = array(cells["types"]).astype(np.int64).ravel()
+    offsets = array(cells["offsets"], n_cells).astype(np.int64).ravel()
+    types = array(cells["types"], n_cells).astype(np.int64).ravel()
     if len(offsets) != n_cells or len(types) != n_cells:
         raise ValueError(f"Cells: expected {n_cells} offsets and types")
+    conn = array(cells["connectivity"], int(offsets.max(initial=0))).astype(np.int64).ravel()
     starts = np.concatenate([[0], offsets[:-1]])
     sizes = offsets - starts
     if n_cells and (sizes.min() < 0 or offsets[-1] > len(conn)):
         raise ValueError("Cells: offsets do not fit the connectivity")
     field_items = {item.get("Name"): item for item in piece.findall("./CellData/DataArray")}
     key = next((k for k in TAG_NAMES if k in field_items), None)
-    cell_tags = array(field_items[key]).ravel() if key else None
+    cell_tags = array(field_items[key], n_cells).ravel() if key else None
     if cell_tags is not None and len(cell_tags) != n_cells:
         raise ValueError(f"CellData {key!r}: expected {n_cells} values")
     blocks, tags, triangle_cells = [], [], np.empty(0, np.int64)
@@ -175,12 +183,12 @@ def _read(path: Path, data: bytes) -> RawMesh:
     point_data = {}
     for item in piece.findall("./PointData/DataArray"):
         name = item.get("Name", "")
-        point_data[name] = kept(array(item), "point", name, n)
+        point_data[name] = kept(array(item, n), "point", name, n)
     cell_data = {}
     for name, item in field_items.items():
         if name == key and name in TAG_NAMES:
             continue
-        values = array(item)
+        values = array(item, n_cells)
         if len(values) != n_cells:
             raise ValueError(f"CellData {name!r}: expected {n_cells} rows")
         cell_data[name] = kept(values[triangle_cells], "cell", name, len(triangle_cells))
@@ -193,15 +201,22 @@ def _meta(root: ET.Element, array) -> dict:
     for item in root.findall("./UnstructuredGrid/FieldData/DataArray"):
         if item.get("Name") == _META:
             try:
-                meta = json.loads(array(item).astype(np.uint8).tobytes().decode())
+                meta = json.loads(array(item, None).astype(np.uint8).tobytes().decode())
             except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):  # too deep
                 raise ValueError(f"field data {_META!r} is not JSON") from None
             return meta if isinstance(meta, dict) else {}
     return {}
 
 
-def _block(data: bytes, offset: int, header: np.dtype, compressed: bool) -> bytes:
-    """The bytes of the appended block at ``offset`` (bounded by the file size)."""
+#: The most bytes a compressed block of unknown size (qdrefine's field data) may expand to.
+_UNSIZED_LIMIT = 1 << 26
+
+
+def _block(data: bytes, offset: int, header: np.dtype, compressed: bool, limit: int,
+           what: str) -> bytes:
+    """The bytes of the appended block at ``offset``: raw ones bounded by the file size,
+    compressed ones by ``limit`` (what the data ``what`` can hold) and by the sizes of its
+    header, checked while decompressing (at most ``limit + 1`` bytes are ever made)."""
     size = header.itemsize
     if offset < 0 or offset + size > len(data):
         raise ValueError(f"byte {offset}: appended data offset outside the file")
@@ -211,17 +226,32 @@ def _block(data: bytes, offset: int, header: np.dtype, compressed: bool) -> byte
             raise ValueError(f"byte {offset}: the file ends inside an appended block of "
                              f"{nbytes} bytes")
         return data[offset + size:offset + size + nbytes]
+    if offset + 3 * size > len(data):
+        raise ValueError(f"byte {offset}: bad compressed block header")
     head = np.frombuffer(data, header, 3, offset).astype(np.int64)
-    n_blocks = int(head[0])
-    if n_blocks < 0 or offset + (3 + n_blocks) * size > len(data):
+    n_blocks, block_size, last_size = (int(v) for v in head)
+    if min(n_blocks, block_size, last_size) < 0 or offset + (3 + n_blocks) * size > len(data):
         raise ValueError(f"byte {offset}: bad compressed block header")
     csizes = np.frombuffer(data, header, n_blocks, offset + 3 * size).astype(np.int64)
     pos = offset + (3 + n_blocks) * size
     if pos + int(csizes.sum()) > len(data):
         raise ValueError(f"byte {offset}: the file ends inside compressed data")
-    out = []
-    for c in csizes.tolist():
-        out.append(zlib.decompress(data[pos:pos + c]))
+    out, left = [], limit
+    for i, c in enumerate(csizes.tolist()):
+        declared = last_size if i == n_blocks - 1 and last_size else block_size
+        cap = max(min(declared, left, sys.maxsize - 1), 0)
+        stream = zlib.decompressobj()
+        chunk = stream.decompress(data[pos:pos + c], cap + 1)
+        if len(chunk) > cap:
+            if cap == declared:
+                raise ValueError(f"byte {pos}: compressed block {i} of {what} holds more than "
+                                 f"the {declared} bytes its header declares")
+            raise ValueError(f"byte {offset}: {what} decompresses to more than the {limit} "
+                             "bytes its rows take")
+        if not stream.eof:
+            raise ValueError(f"byte {pos}: compressed block {i} of {what} is truncated")
+        out.append(chunk)
+        left -= len(chunk)
         pos += c
     return b"".join(out)
 
