@@ -89,14 +89,17 @@ def note_written(path: str | Path, what: str, args: argparse.Namespace) -> None:
 def add_compress(parser: argparse.ArgumentParser) -> None:
     """``--compress``: compressed data in a ``.vtu`` or ``.xdmf`` output."""
     parser.add_argument("--compress", action="store_true",
-                        help="compress the data of a .vtu (zlib) or .xdmf (gzip HDF5) output: "
-                        "smaller, slower")
+                        help="compress the data of a .vtu (zlib) or .xdmf/.xmf (gzip HDF5) "
+                        "output: smaller, slower")
 
 
 def check_compress(path: str, compress: bool) -> None:
-    """``--compress`` applies to a ``.vtu`` or ``.xdmf`` output only."""
-    if compress and Path(path).suffix.lower() not in (".vtu", ".xdmf"):
-        raise ValueError(f"{path}: --compress applies to .vtu and .xdmf output only")
+    """``--compress`` applies to the outputs :func:`qdrefine.write` compresses (``.vtu``,
+    ``.xdmf`` and ``.xmf``; ``.xmf`` was refused here, not by the API)."""
+    from ..io import COMPRESSIBLE, FORMATS
+
+    if compress and FORMATS.get(Path(path).suffix.lower()) not in COMPRESSIBLE:
+        raise ValueError(f"{path}: --compress applies to .vtu and .xdmf (.xmf) output only")
 
 
 def check_format_version(path: str, version: str | None) -> None:
