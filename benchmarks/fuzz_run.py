@@ -12,9 +12,13 @@ the mutation read as a mesh with fewer triangles), ``input changed``. A deleted 
 leaves a smaller valid file (an OBJ face, a whole STL facet is not one line) is counted as
 ``smaller after a deleted line``: formats without declared counts cannot tell.
 
-Usage::
+Needs the test extra (``pip install -e '.[test]'``: the mutations use hypothesis). Usage::
 
-    python benchmarks/fuzz_run.py [--per-format 10000] [--json benchmarks/results/fuzz-DATE.json]
+    python benchmarks/fuzz_run.py [--per-format 10000] [--json FILE] [--write-docs]
+
+The results go to ``--json`` (default ``benchmarks/results/fuzz-DATE.json``); with
+``--write-docs`` section 5 of ``docs/robustness.md`` is rewritten from them (only for a run
+meant to replace the published counts).
 """
 
 from __future__ import annotations
@@ -112,7 +116,10 @@ def main(argv=None) -> None:
     parser.add_argument("--per-format", type=int, default=10_000)
     parser.add_argument("--seconds", type=int, default=10, help="alarm per file")
     parser.add_argument("--formats", default=",".join(sorted(SEEDS)))
-    parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--json", type=Path, default=None,
+                        help="results file (default benchmarks/results/fuzz-DATE.json)")
+    parser.add_argument("--write-docs", action="store_true",
+                        help="also rewrite section 5 of docs/robustness.md from this run")
     args = parser.parse_args(argv)
     date = datetime.date.today().isoformat()
     result = {"date": date, "machine": platform.platform(), "per_format": args.per_format,
@@ -126,7 +133,8 @@ def main(argv=None) -> None:
     path = args.json or ROOT / "benchmarks" / "results" / f"fuzz-{date}.json"
     path.write_text(json.dumps(result, indent=1))
     print("wrote", path)
-    if args.json is None:
+    if args.write_docs:  # was whenever --json was not given: a short try replaced the
+        # published counts (newcomer review)
         PAGE.write_text(splice(PAGE.read_text(), section(result, path.name), START, END))
         print("wrote", PAGE)
 
