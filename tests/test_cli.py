@@ -1,6 +1,7 @@
 """The command line: every subcommand (in-process through ``qdrefine.cli.main``; the entry
 point itself by ``python -m qdrefine``), and its error paths."""
 
+import argparse
 import json
 import os
 import subprocess
@@ -504,3 +505,20 @@ def test_check_json_has_the_same_keys_for_every_file(tmp_path, run):
     assert reports[0]["numbered_by"] == "file" and reports[0]["numbered_from"] is None
     assert reports[1]["triangles"] is None and reports[1]["problems"][0]["count"] == 1
     assert reports[2]["numbered_by"] == "row" and reports[2]["numbered_from"] in (0, 1)
+
+
+def test_the_guide_lists_every_option_of_every_command():
+    """The guide's command table had lost options that --help shows (check --scheme,
+    compare --tolerance, convert --binary ...; newcomer review)."""
+    from qdrefine.cli import COMMANDS, _parser
+
+    table = (Path(__file__).parents[1] / "docs" / "guide.md").read_text()
+    sub = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for name in COMMANDS:
+        rows = "\n".join(line for line in table.splitlines()
+                         if line.startswith(f"| `qdrefine {name} "))
+        assert rows, f"no row for {name}"
+        for action in sub.choices[name]._actions:
+            long = [o for o in action.option_strings if o.startswith("--")]
+            if long and long[0] not in ("--help", "--quiet"):
+                assert long[0] in rows, f"{name} {long[0]} is not in the guide's table"
