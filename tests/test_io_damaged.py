@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import qdrefine
-from qdrefine import Mesh
+from qdrefine import Mesh, examples
 from qdrefine.marking import mark_dorfler
 
 P = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]], dtype=float)
@@ -504,3 +504,23 @@ def test_a_compressed_vtu_block_cannot_expand_past_its_sizes(tmp_path, points, d
     finally:
         tracemalloc.stop()
     assert peak < 8 << 20  # the file is 65 kB; 64 MiB were made before
+
+
+@pytest.mark.parametrize("kind", ["NodeData", "ElementData"])
+def test_a_view_of_absurdly_many_components_is_refused_before_it_is_made(tmp_path, kind):
+    """A 300-byte file whose view had no values and 1e8 components took 4 GB: the field was
+    made that wide, filled with NaN (review). Gmsh views have 1, 3 or 9 components."""
+    mesh = examples.square(1)
+    rows = mesh.n_points if kind == "NodeData" else mesh.n_triangles
+    data = {"u": np.arange(rows, dtype=float)}
+    mesh = mesh.replace(**({"point_data": data} if kind == "NodeData" else {"cell_data": data}))
+    qdrefine.write(tmp_path / "m.msh", mesh)
+    text = (tmp_path / "m.msh").read_text()
+    head = f'${kind}\n1\n"u"\n1\n0\n3\n0\n1\n{rows}\n'
+    assert head in text
+    body = text[text.index(head):text.index(f"$End{kind}")]
+    text = text.replace(body, f'${kind}\n1\n"u"\n1\n0\n3\n0\n100000000\n0\n')
+    (tmp_path / "m.msh").write_text(text)
+    with pytest.raises(ValueError, match=rf"\${kind} 'u' has 100000000 components per value; "
+                                         "Gmsh views have 1, 3 or 9"):
+        qdrefine.read(tmp_path / "m.msh")

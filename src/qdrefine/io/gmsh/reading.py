@@ -661,6 +661,9 @@ def _data_section(kind: str):
         name = strings[0].strip('"') if strings else kind
         if components <= 0 or count < 0:
             raise f.error(start, f"${kind}: bad number of components or values")
+        if components > 9:  # a field of no values was still made that wide (review)
+            raise f.error(start, f"${kind} {name!r} has {components} components per value; "
+                                 "Gmsh views have 1, 3 or 9")
         if f.binary:
             rec = np.dtype([("tag", np.int32), ("v", np.float64, (components,))])
             values, end = f.take(pos, rec, count, f"${kind}")
