@@ -1258,3 +1258,22 @@ def test_floats_wider_than_64_bits_are_refused_naming_the_file(tmp_path):
                                              "written: files hold integers and floats of up"):
             qdrefine.write(tmp_path / f"q{ext}", wide)
     assert not list(tmp_path.iterdir())
+
+
+def test_an_hdf5_dataset_never_written_is_refused(tmp_path):
+    """HDF5 reads fill values for chunks never written: a 2.6 kB pair declaring 150 M
+    points took 7.7 GB before the checks refused it (review). Refused from the storage the
+    file holds, before anything is read."""
+    import h5py
+
+    qdrefine.write(tmp_path / "m.xdmf", examples.square(2))
+    with h5py.File(tmp_path / "m.h5", "r+") as h5:
+        shape, dtype = h5["data0"].shape, h5["data0"].dtype
+        del h5["data0"]
+        h5.create_dataset("data0", shape=shape, dtype=dtype, chunks=True)
+    with pytest.raises(ValueError, match=r"m.xdmf: the data item m.h5:/data0 declares 9 x 3 "
+                                         r"values, but the HDF5 file holds 0 of their 216 "
+                                         r"bytes \(data never written\)"):
+        qdrefine.read(tmp_path / "m.xdmf")
+    qdrefine.write(tmp_path / "z.xdmf", examples.square(2), compress=True)  # filtered: fine
+    assert qdrefine.read(tmp_path / "z.xdmf").n_triangles == examples.square(2).n_triangles
