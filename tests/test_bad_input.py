@@ -1146,8 +1146,8 @@ NODES41 = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 3 1 {max}\n2 1 0 3\n1
 
 @pytest.mark.parametrize("last, tag, message", [
     # NumPy's text parser saturates: 10**20 read as 2**63 - 1 and the mesh loaded (review)
-    ("99999999999999999999", "1", r"line 5: node tags must be integers below 2\*\*53 \(the "
-                                  r"first that is not: 1e\+20\)"),
+    ("99999999999999999999", "1", r"line 5: node tag 1e\+20 is beyond int64 \(tags are "
+                                  r"integers below 2\*\*63\)"),
     ("3", "99999999999999999999", r"line 15: expected a 64-bit integer, got "
                                   r"'99999999999999999999'"),
     ("3", "-99999999999999999999", r"line 15: expected a 64-bit integer"),

@@ -524,3 +524,27 @@ def test_a_view_of_absurdly_many_components_is_refused_before_it_is_made(tmp_pat
     with pytest.raises(ValueError, match=rf"\${kind} 'u' has 100000000 components per value; "
                                          "Gmsh views have 1, 3 or 9"):
         qdrefine.read(tmp_path / "m.msh")
+
+
+def test_a_binary_node_tag_beyond_int64_is_refused(tmp_path):
+    """A uint64 node tag of 2**63 or more was read as a negative tag (review)."""
+    qdrefine.write(tmp_path / "m.msh", examples.square(1), binary=True)
+    data = bytearray((tmp_path / "m.msh").read_bytes())
+    first_tag = data.index(b"$Nodes\n") + len(b"$Nodes\n") + 4 * 8 + 3 * 4 + 8
+    data[first_tag:first_tag + 8] = struct.pack("<Q", 2**63 + 1)
+    (tmp_path / "m.msh").write_bytes(bytes(data))
+    with pytest.raises(ValueError, match=r"node tag 9223372036854775809 is beyond int64"):
+        qdrefine.read(tmp_path / "m.msh")
+
+
+@pytest.mark.parametrize("change, why", [
+    (lambda text: "\ufeff" + text, "starts with a UTF-8 byte-order mark"),
+    (lambda text: text.replace("\n", "\r"), "lines end in CR only"),
+])
+def test_a_msh_file_that_does_not_start_as_gmsh_reads_says_why(tmp_path, change, why):
+    """Both said only "no $MeshFormat section at the start", which the file has (review)."""
+    qdrefine.write(tmp_path / "m.msh", examples.square(1))
+    text = (tmp_path / "m.msh").read_text()
+    (tmp_path / "m.msh").write_bytes(change(text).encode())
+    with pytest.raises(ValueError, match=f"no \\$MeshFormat section at the start .*{why}"):
+        qdrefine.read(tmp_path / "m.msh")

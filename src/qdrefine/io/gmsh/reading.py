@@ -107,6 +107,17 @@ class _Content:
         self.dtypes: dict = {}
 
 
+def _why_not(data: bytes) -> str:
+    """Why a file that may hold ``$MeshFormat`` does not start with it, as a clause: a
+    byte-order mark or lines ended by CR only (the message named only the section)."""
+    head = data[:4096]
+    if head.startswith(b"\xef\xbb\xbf"):
+        return " (the file starts with a UTF-8 byte-order mark, which Gmsh does not read)"
+    if b"\r" in head and b"\n" not in head:
+        return " (its lines end in CR only; MSH lines end in LF or CR LF)"
+    return ""
+
+
 def _read(f: _File) -> RawMesh:
     c = _Content()
     pos = 0
@@ -120,12 +131,12 @@ def _read(f: _File) -> RawMesh:
         m = _SECTION.match(data, pos)
         if m is None:
             if not c.version:
-                raise f.error(pos, "no $MeshFormat section at the start")
+                raise f.error(pos, "no $MeshFormat section at the start" + _why_not(data))
             raise f.error(pos, f"expected a section ($Name), got {f.line(pos)[0][:40]!r}")
         name = m.group(1).decode()
         start = m.end()
         if not c.version and name != "MeshFormat":
-            raise f.error(pos, "no $MeshFormat section at the start")
+            raise f.error(pos, "no $MeshFormat section at the start" + _why_not(data))
         if name in _ONCE:
             if name in seen:  # the second replaced the first without a word
                 raise f.error(pos, f"a second ${name} section (a file holds one)")
@@ -345,6 +356,9 @@ def _nodes(f: _File, c: _Content, start: int) -> int:
             count, pos = f.take(pos, np.uint64, 1, "$Nodes")
             n = int(count[0])
             t, pos = f.take(pos, np.uint64, n, "$Nodes")
+            if n and int(t.max()) >= 2**63:  # read as negative tags before (review)
+                raise f.error(start, f"node tag {int(t.max())} is beyond int64 (tags are "
+                                     "integers below 2**63)")
             x, pos = f.take(pos, np.float64, n * width, "$Nodes")
             tags.append(t.astype(np.int64))
             coords.append(x.reshape(n, width)[:, :3])
@@ -467,6 +481,10 @@ def _nodes41_by_lines(f: _File, start: int, end: int
 
 def _tag_array(f: _File, tags: NDArray, start: int, what: str) -> NDArray[np.int64]:
     if tags.dtype.kind == "f" and len(tags):
+        beyond = np.abs(tags) >= 2.0**63
+        if beyond.any():  # was "below 2**53", though the usual layout reads int64 exactly
+            raise f.error(start, f"{what} tag {float(tags[beyond.argmax()]):.17g} is beyond "
+                                 "int64 (tags are integers below 2**63)")
         bad = ~((tags == np.round(tags)) & (np.abs(tags) < EXACT_INT))
         if bad.any():
             raise f.error(start, f"{what} tags must be integers below 2**53 (the first "
