@@ -1277,3 +1277,14 @@ def test_an_hdf5_dataset_never_written_is_refused(tmp_path):
         qdrefine.read(tmp_path / "m.xdmf")
     qdrefine.write(tmp_path / "z.xdmf", examples.square(2), compress=True)  # filtered: fine
     assert qdrefine.read(tmp_path / "z.xdmf").n_triangles == examples.square(2).n_triangles
+
+
+def test_heavy_data_that_is_not_hdf5_is_named(tmp_path):
+    """The message was HDF5's "Unable to synchronously open file (file signature not
+    found)", naming neither the heavy-data file nor the format (review)."""
+    qdrefine.write(tmp_path / "m.xdmf", examples.square(2))
+    (tmp_path / "m.h5").write_text("root:x:0:0:root:/root:/bin/bash\n")
+    result = cli("info", tmp_path / "m.xdmf")
+    assert result.returncode == 1
+    assert result.stderr == (f"qdrefine: error: {tmp_path / 'm.h5'}: not an HDF5 file (the "
+                             "heavy data of m.xdmf)\n")

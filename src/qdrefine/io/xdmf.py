@@ -123,6 +123,11 @@ def _check_heavy_data(path: Path) -> None:
                                     f"{path.name})")
     import h5py
 
+    for name in dict.fromkeys(n for n, _, _ in items):
+        if not h5py.is_hdf5(folder / name):  # HDF5's words named neither file (review)
+            raise ValueError(f"{folder / name}: not an HDF5 file (the heavy data of "
+                             f"{path.name})")
+
     for name, dataset, dimensions in items:
         try:
             size = int(np.prod([int(d) for d in dimensions.split()]))
