@@ -548,3 +548,47 @@ def test_a_msh_file_that_does_not_start_as_gmsh_reads_says_why(tmp_path, change,
     (tmp_path / "m.msh").write_bytes(change(text).encode())
     with pytest.raises(ValueError, match=f"no \\$MeshFormat section at the start .*{why}"):
         qdrefine.read(tmp_path / "m.msh")
+
+
+@pytest.mark.parametrize("compressor", ["zlib", "lzma"])
+def test_vtu_files_meshio_reads_are_bounded_too(tmp_path, compressor):
+    """Inline or base64 VTU goes to meshio, which decompressed every block whole: a 209 kB
+    file took 2.3 GB before the error (review). The blocks are decompressed, bounded by
+    their rows and header sizes, before meshio reads the file; meshio's own files of either
+    compressor still read bit for bit."""
+    import base64
+    import lzma
+    import tracemalloc
+    import zlib
+
+    import meshio
+
+    mesh = examples.plate_with_hole()
+    theirs = meshio.Mesh(np.c_[mesh.points, np.zeros(mesh.n_points)],
+                         [("triangle", mesh.triangles)], point_data={"u": mesh.points[:, 0]})
+    meshio.write(tmp_path / "ok.vtu", theirs, compression=compressor)
+    back = qdrefine.read(tmp_path / "ok.vtu")
+    assert np.array_equal(back.points, mesh.points)
+    assert np.array_equal(back.point_data["u"], mesh.points[:, 0])
+
+    pack = zlib.compress if compressor == "zlib" else lzma.compress
+    body = pack(bytes(1 << 26))
+    head = struct.pack("<4Q", 1, 1 << 26, 1 << 26, len(body))
+    inline = (base64.b64encode(head) + base64.b64encode(body)).decode()
+    name = {"zlib": "vtkZLibDataCompressor", "lzma": "vtkLZMADataCompressor"}[compressor]
+    (tmp_path / "bomb.vtu").write_text(
+        '<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
+        f'byte_order="LittleEndian" header_type="UInt64" compressor="{name}">\n'
+        '<UnstructuredGrid>\n<Piece NumberOfPoints="5" NumberOfCells="1">\n<Points>\n'
+        '<DataArray type="UInt8" Name="Points" NumberOfComponents="3" format="binary">\n'
+        f'{inline}\n</DataArray>\n</Points>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n')
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match="bomb.vtu: not a readable VTK XML unstructured "
+                                             "grid file .DataArray 'Points' decompresses to "
+                                             "more than the 15 bytes its rows take"):
+            qdrefine.read(tmp_path / "bomb.vtu")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 16 << 20  # 64 MiB were made before, whole
