@@ -27,7 +27,7 @@ from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 import qdrefine
-from cli_runner import cli, finish, start
+from cli_runner import cli, finish, start, without_compile_note
 from meshes import DATA, crack
 from qdrefine import Mesh, check, examples
 from qdrefine.memory import MEMORY_LIMIT_VARIABLE, memory_needed
@@ -1288,3 +1288,25 @@ def test_heavy_data_that_is_not_hdf5_is_named(tmp_path):
     assert result.returncode == 1
     assert result.stderr == (f"qdrefine: error: {tmp_path / 'm.h5'}: not an HDF5 file (the "
                              "heavy data of m.xdmf)\n")
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_an_xdmf_write_past_the_file_size_limit_is_one_line(tmp_path, compress):
+    """Under ``ulimit -f`` HDF5 failed mid-write: h5py printed four tracebacks while it
+    cleaned up and the process crashed (exit 139; review). Uncompressed, the size is
+    checked before; compressed, the file is made in memory and written by Python."""
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1 << 16, 1 << 16))
+
+    qdrefine.write(tmp_path / "in.msh", examples.plate_with_hole())
+    args = ["refine", tmp_path / "in.msh", tmp_path / "out.xdmf", "--levels", "2"]
+    done = subprocess.run([sys.executable, "-m", "qdrefine", *map(str, args),
+                           *(["--compress"] if compress else [])], capture_output=True,
+                          text=True, preexec_fn=limit, timeout=300)
+    err = without_compile_note(done.stderr)
+    assert (done.returncode, err.count("\n")) == (1, 1), err
+    assert err.startswith(f"qdrefine: error: {tmp_path / 'out.h5'}: cannot write: File too "
+                          "large")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.msh"]

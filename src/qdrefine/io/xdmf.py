@@ -16,6 +16,7 @@ from __future__ import annotations
 import errno
 import hashlib
 import html
+import io
 import os
 import re
 from pathlib import Path
@@ -206,6 +207,33 @@ def _check_names(path: Path, mesh) -> None:
     check_xml_names(path, mesh)
 
 
+#: Bytes of HDF5 bookkeeping per dataset (and for the file), beyond the data itself: an
+#: estimate well above what h5py writes for a small dataset (about 2 kB).
+_H5_OVERHEAD = 1 << 16
+
+
+def _check_room(h5_path: Path, needed: int) -> None:
+    """Refuse, before HDF5 starts, an uncompressed HDF5 file that the file size limit
+    (``ulimit -f``) or the free space of its folder cannot hold: HDF5 failing mid-write left
+    h5py printing tracebacks while it cleaned up, then the process crashed (exit 139;
+    review). A compressed file's size is not known beforehand: it is not checked."""
+    import resource
+    import shutil
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+    if soft != resource.RLIM_INFINITY and needed > soft:
+        raise cannot_write(h5_path, f"{os.strerror(errno.EFBIG)} (the HDF5 file needs about "
+                                    f"{needed} bytes; the file size limit, ulimit -f, is "
+                                    f"{soft} bytes)", errno.EFBIG)
+    try:
+        free = shutil.disk_usage(h5_path.parent).free
+    except OSError:
+        return  # the write says what is wrong
+    if needed > free:
+        raise cannot_write(h5_path, f"{os.strerror(errno.ENOSPC)} (the HDF5 file needs about "
+                                    f"{needed} bytes, {free} are free)", errno.ENOSPC)
+
+
 def _write_error(path: Path, exc: BaseException) -> OSError:
     """One line for a failed HDF5 write: the file and the system's reason (HDF5 puts the
     ``errno`` inside a long message)."""
@@ -295,9 +323,16 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # no
     xml.append("</Grid>\n</Domain>\n</Xdmf>\n")
     stamp = _digest("".join(xml), [a for _, a in datasets])
     xml[0] = xml[0].replace("?>\n", f"?>\n<!-- qdrefine set {stamp} -->\n", 1)
+    if not compress:
+        _check_room(h5_path, sum(a.nbytes for _, a in datasets) + _H5_OVERHEAD * (
+            1 + len(datasets)))
     with atomic_paths([h5_path, path]) as (h5_tmp, xml_tmp):
+        # a compressed file is made in memory (its size is not known beforehand, and HDF5
+        # failing mid-write crashed the process) and written by Python, whose failures are
+        # plain OSErrors; it is smaller than the data
+        target = io.BytesIO() if compress else h5_tmp
         try:
-            with h5py.File(h5_tmp, "w") as h5:
+            with h5py.File(target, "w") as h5:
                 h5.attrs["qdrefine_set"] = stamp
                 for name, a in datasets:
                     if compress and a.size:
@@ -306,4 +341,10 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # no
                         h5.create_dataset(name, data=a)
         except (OSError, RuntimeError) as exc:  # HDF5's own errors (a full disk ...)
             raise _write_error(h5_path, exc) from None
+        if compress:
+            try:
+                with open(h5_tmp, "wb") as f:
+                    f.write(target.getbuffer())
+            except OSError as exc:
+                raise cannot_write(h5_path, exc.strerror or str(exc), exc.errno) from None
         xml_tmp.write_text("".join(xml), encoding="utf-8")
