@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import re
 import stat
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -375,8 +376,11 @@ def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
                     named is None and exc.errno is not None and exc.errno not in WRITE_ERRNOS):
                 raise  # named already, or not a write of ours (e.g. reading a source);
                 # no errno: NumPy's tofile refused ("N requested and M written")
-            raise cannot_write(named or targets[0], exc.strerror or str(exc),
-                               exc.errno) from None
+            short = re.fullmatch(r"(\d+) requested and (\d+) written", str(exc))
+            reason = exc.strerror or str(exc) if short is None else \
+                f"the system took {short[2]} of {short[1]} bytes (a file size limit or a " \
+                "full disk)"  # NumPy's own words, without errno (review)
+            raise cannot_write(named or targets[0], reason, exc.errno) from None
     except BaseException:
         for tmp in temps:
             with contextlib.suppress(OSError):
