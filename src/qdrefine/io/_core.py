@@ -389,11 +389,15 @@ def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
 
 
 def permission_bits(path: Path, new: int = 0o666) -> int:
-    """The permission bits of ``path`` if it exists, else ``new`` less the umask (``0o666``
-    for a new file, ``0o777`` for a new directory)."""
+    """The permission bits of ``path`` if it is a regular file or a directory, else ``new``
+    less the umask (``0o666`` for a new file, ``0o777`` for a new directory; also for a
+    link to a device, whose 0666 a new file took, review)."""
     try:
-        return path.stat().st_mode & 0o777
+        mode = path.stat().st_mode
+        if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+            return mode & 0o777
     except OSError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return new & ~umask
+        pass
+    umask = os.umask(0)
+    os.umask(umask)
+    return new & ~umask
