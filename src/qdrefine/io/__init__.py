@@ -57,9 +57,9 @@ from ..check import MIN_ANGLE, Checked, find
 from ..memory import check_needed, reading_needed_for_bytes
 from ..mesh import Mesh, _data, _names, history_rows, need_mesh
 from . import gmsh, obj, triangle, vtu, xdmf
-from ._core import (
+from ._core import RawMesh
+from .atomic import (
     WRITE_ERRNOS,
-    RawMesh,
     atomic_path,
     atomic_paths,
     cannot_write,

@@ -3,10 +3,7 @@ conversion of cell blocks to triangles and tags, atomic writes and file checks."
 
 from __future__ import annotations
 
-import contextlib
-import errno
 import os
-import re
 import stat
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -257,17 +254,6 @@ def mesh_data(mesh, path: PathLike | None = None, reserved: tuple[str, ...] = ()
 # writing
 
 
-@contextlib.contextmanager
-def atomic_path(path: PathLike) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; on success it replaces ``path``.
-
-    On any exception the temporary file is removed and ``path`` is left as it was. The
-    temporary name keeps the extension, so tools that look at it still work.
-    """
-    with atomic_paths([path]) as (tmp,):
-        yield tmp
-
-
 class MeshChunks:
     """A mesh given chunk by chunk (e.g. a Zarr store), for the writers that stream it
     (:func:`qdrefine.io.gmsh.writing.write_chunks`, :func:`qdrefine.io.triangle.write_chunks`);
@@ -309,95 +295,3 @@ class MeshChunks:
                 yield start, rows, np.zeros(len(rows), np.int64)
             else:
                 yield start, rows, np.asarray(tags(start, start + len(rows)), np.int64)
-
-
-#: System errors of a write that the disk or the system refuses (full disk, quota, file size
-#: limit, read-only filesystem): reported as "FILE: cannot write: REASON".
-WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})
-
-
-def cannot_write(path: PathLike, reason: str, number: int | None) -> OSError:
-    """The one-line error of a refused write: ``"PATH: cannot write: REASON"``, with the
-    system's error ``number`` kept as ``errno``."""
-    error = OSError(f"{path}: cannot write: {reason}")
-    error.errno = number
-    return error
-
-
-def make_directory(path: PathLike) -> Path:
-    """Create the output directory ``path`` (and its parents) if missing; a refusal is one
-    line naming it (:func:`cannot_write`)."""
-    path = Path(path)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:  # a file, or a link to one
-        raise NotADirectoryError(f"{path}: exists and is not a directory") from None
-    except OSError as exc:
-        raise cannot_write(path, exc.strerror or str(exc), exc.errno) from None
-    return path
-
-
-@contextlib.contextmanager
-def atomic_paths(paths: list[PathLike]) -> Iterator[list[Path]]:
-    """:func:`atomic_path` for a set of files written together (Triangle's three files, XDMF
-    and its HDF5 file): temporary paths are yielded, and only when all were written do they
-    replace their targets (one ``os.replace`` each, in order, after every write succeeded)."""
-    targets = [Path(p) for p in paths]
-    for path in targets:
-        if not path.parent.is_dir():
-            raise FileNotFoundError(f"{path}: directory {path.parent} does not exist")
-        if path.is_dir():
-            raise IsADirectoryError(f"{path}: is a directory")
-    temps: list[Path] = []
-    try:
-        for path in targets:
-            # named and listed before it exists, so that an interrupt (Ctrl-C, SIGTERM)
-            # landing just after its creation still finds it to remove
-            while True:
-                tmp = path.parent / f".{path.stem}.{os.urandom(4).hex()}.tmp{path.suffix}"
-                temps.append(tmp)
-                try:
-                    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-                    break
-                except FileExistsError:
-                    temps.pop()
-                except OSError as exc:
-                    raise cannot_write(path, exc.strerror or str(exc), exc.errno) from None
-            os.close(fd)
-            os.chmod(tmp, permission_bits(path))
-        try:
-            yield temps
-            for tmp, path in zip(temps, targets, strict=True):
-                os.replace(tmp, path)
-        except OSError as exc:  # a full disk, a file size limit ...: name the file
-            named = next((p for t, p in zip(temps, targets, strict=True)
-                          if exc.filename is not None and str(t) == str(exc.filename)), None)
-            if str(exc).startswith(tuple(str(p) for p in targets)) or (
-                    named is None and exc.errno is not None and exc.errno not in WRITE_ERRNOS):
-                raise  # named already, or not a write of ours (e.g. reading a source);
-                # no errno: NumPy's tofile refused ("N requested and M written")
-            short = re.fullmatch(r"(\d+) requested and (\d+) written", str(exc))
-            reason = exc.strerror or str(exc) if short is None else \
-                f"the system took {short[2]} of {short[1]} bytes (a file size limit or a " \
-                "full disk)"  # NumPy's own words, without errno (review)
-            raise cannot_write(named or targets[0], reason, exc.errno) from None
-    except BaseException:
-        for tmp in temps:
-            with contextlib.suppress(OSError):
-                tmp.unlink()
-        raise
-
-
-def permission_bits(path: Path, new: int = 0o666) -> int:
-    """The permission bits of ``path`` if it is a regular file or a directory, else ``new``
-    less the umask (``0o666`` for a new file, ``0o777`` for a new directory; also for a
-    link to a device, whose 0666 a new file took, review)."""
-    try:
-        mode = path.stat().st_mode
-        if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
-            return mode & 0o777
-    except OSError:
-        pass
-    umask = os.umask(0)
-    os.umask(umask)
-    return new & ~umask

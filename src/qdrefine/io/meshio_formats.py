@@ -24,13 +24,13 @@ from ._core import (
     SKIPPED_NAMES,
     TAG_NAMES,
     RawMesh,
-    atomic_path,
     check_regular,
     from_blocks,
     mesh_data,
     split_data,
     writable_data,
 )
+from .atomic import atomic_path
 
 __all__ = ["read_with_meshio", "write_with_meshio", "meshio_mesh", "raw_from_meshio"]
 

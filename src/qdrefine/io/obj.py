@@ -9,8 +9,9 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ._core import RawMesh, atomic_path
+from ._core import RawMesh
 from ._text import format_floats, int_lines
+from .atomic import atomic_path
 from .meshio_formats import read_with_meshio
 
 __all__ = ["read", "write"]

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ._core import MeshChunks, RawMesh, atomic_paths, read_bytes
+from ._core import MeshChunks, RawMesh, read_bytes
+from .atomic import atomic_paths
 
 __all__ = ["read", "write", "write_chunks", "base_of", "Stamping", "SET_STAMP"]
 

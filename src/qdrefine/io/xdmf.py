@@ -24,15 +24,8 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 
-from ._core import (
-    SKIPPED_NAMES,
-    TAG_NAMES,
-    RawMesh,
-    atomic_paths,
-    cannot_write,
-    check_regular,
-    mesh_data,
-)
+from ._core import SKIPPED_NAMES, TAG_NAMES, RawMesh, check_regular, mesh_data
+from .atomic import atomic_paths, cannot_write
 from .meshio_formats import check_one_group_per_name
 from .xml_names import check_xml_names
 

@@ -147,24 +147,21 @@ def extrema(ctx) -> list[str]:
     res = ctx["res"]
     out = ["## Certified worst 7T-QD / 7T-D minimum-angle ratio\n",
            "Over the closed shaded region, for each reading of the paper's sentence. *value* is "
-           "the smallest ratio found at a point of the closure (every boundary curve "
-           "sampled and polished by golden section, the four corners, branch-and-bound box "
-           "centres), with the shaded region's fans continued to its boundary; *lower* is "
-           "certified by interval branch and bound over the whole closure "
-           "(exact ranges of the angle's sine-and-cosine numerators on each box, monotone "
-           "arctangent, outward rounding slack); the minimum lies in [lower, value]. Tested "
-           "against an independent 30-digit mpmath search of every arc and corner. *attained*: "
-           "whether a triangle at that point has the two partitions compared; where the tie "
-           "rules give it others (the base, the I/III arc and its corners: 7T-QD's Case I, "
-           "the same fan as 7T-D's), *value* is an infimum that triangles approach as closely "
-           "as wanted but do not reach.\n",
+           "the smallest ratio found at a point of the closure (every boundary curve sampled "
+           "and polished by golden section, the four corners, branch-and-bound box centres), "
+           "the shaded region's fans continued to its boundary; *lower* is certified by "
+           "interval branch and bound over the whole closure (exact ranges of the angle's "
+           "sine-and-cosine numerators on each box, monotone arctangent, outward rounding "
+           "slack); the minimum lies in [lower, value]. Tested against an independent 30-digit "
+           "mpmath search of every arc and corner. *attained*: whether a triangle there has "
+           "the partitions compared; elsewhere (the base: no triangle; the I/III arc and its "
+           "corners: tie rule 3, both split alike) *value* is an infimum.\n",
            "| reading | compares | value | % worse | lower | bound | where | attained | point |",
            "|---|---|---|---|---|---|---|---|---|"]
     for r, e in res.worst.items():
         out.append(f"| {r} | {READINGS[r][0]} | {e.value:.12f} | {100 * (1 - e.value):.4f}% | "
-                   f"{e.lower:.12f} | {e.bound:.1e} | {e.where} | "
-                   f"{'yes' if e.attained else 'no (infimum)'} | "
-                   f"({e.point[0]:.9f}, {e.point[1]:.9f}) |")
+                   f"{e.lower:.12f} | {e.bound:.1e} | {e.where} | {'yes' if e.attained else 'no'}"
+                   f" | ({e.point[0]:.9f}, {e.point[1]:.9f}) |")
     out.append("")
     if res.gaps:
         out += ["The largest difference 7T-D - 7T-QD of the minimum angle (degrees), by the same "
@@ -174,8 +171,7 @@ def extrema(ctx) -> list[str]:
                 "|---|---|---|---|---|---|---|"]
         for r, e in res.gaps.items():
             out.append(f"| {r} | {e.value:.10f} | {e.upper:.10f} | {e.bound:.1e} | {e.where} | "
-                       f"{'yes' if e.attained else 'no (supremum)'} | "
-                       f"({e.point[0]:.9f}, {e.point[1]:.9f}) |")
+                       f"{'yes' if e.attained else 'no'} | ({e.point[0]:.9f}, {e.point[1]:.9f}) |")
         same = [r for r in res.gaps if np.hypot(*np.subtract(res.gaps[r].point,
                                                               res.worst[r].point)) < 1e-6]
         out.append("\nThe largest difference and the worst ratio are at the same point for "

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from ..interrupts import signals_held
 from ..io import permission_bits
-from ..io._core import cannot_write
+from ..io.atomic import cannot_write
 from .layout import finish, is_store
 from .locations import PathLike, filesystem, is_local, join, location, split
 

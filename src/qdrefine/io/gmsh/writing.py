@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from .._core import MeshChunks, atomic_path, mesh_data
+from .._core import MeshChunks, mesh_data
 from .._text import format_floats, int_lines
+from ..atomic import atomic_path
 from ..recorded import record
 from .common import EXACT_INT, VERSIONS
 
