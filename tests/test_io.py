@@ -282,21 +282,17 @@ def test_write_is_atomic(tmp_path, monkeypatch, ext):
 
 
 def test_new_files_get_ordinary_permissions(tmp_path):
-    umask = os.umask(0o022)
-    try:
-        qdrefine.write(tmp_path / "a.vtk", examples.square(1))
-    finally:
-        os.umask(umask)
-    assert stat.S_IMODE((tmp_path / "a.vtk").stat().st_mode) == 0o644
-    # an output that is a link to a device is replaced by an ordinary file, not one with
-    # the device's 0666 (review)
+    """A new file, and an output that is a link to a device, which is replaced by an ordinary
+    file (it took the device's 0666; review)."""
     (tmp_path / "b.msh").symlink_to("/dev/null")
     umask = os.umask(0o022)
     try:
-        qdrefine.write(tmp_path / "b.msh", examples.square(1))
+        for name in ("a.vtk", "b.msh"):
+            qdrefine.write(tmp_path / name, examples.square(1))
     finally:
         os.umask(umask)
-    assert stat.S_IMODE((tmp_path / "b.msh").stat().st_mode) == 0o644
+    for name in ("a.vtk", "b.msh"):
+        assert stat.S_IMODE((tmp_path / name).stat().st_mode) == 0o644
 
 
 # Triangle's own files -------------------------------------------------------------------
