@@ -62,7 +62,10 @@ def check_base64_blocks(data: bytes) -> None:
     import base64
     import lzma
 
-    root = ET.fromstring(data)
+    try:
+        root = ET.fromstring(data)
+    except ET.ParseError:
+        return  # raw appended data (not XML): meshio refuses it, in its own words
     compressors = {"vtkZLibDataCompressor": zlib.decompressobj,
                    "vtkLZMADataCompressor": lzma.LZMADecompressor}
     decompressor = compressors.get(root.get("compressor", ""))
@@ -92,18 +95,18 @@ def check_base64_blocks(data: bytes) -> None:
                     int(item.get("NumberOfComponents", "1")), 1) * np.dtype(kind).itemsize
                 name = item.get("Name")
                 _check_one(text, header, limit, f"DataArray {name!r}" if name else
-                                    "an unnamed DataArray", decompressor, base64.b64decode)
+                           "an unnamed DataArray", decompressor, base64.b64decode)
     for item in root.iter("FieldData"):
         for array in item.iter("DataArray"):
             if array.get("format") in ("binary", "appended"):
                 text = (array.text or "").strip() if array.get("format") == "binary" else \
                     tail[int(array.get("offset", "0")):]
                 _check_one(text, header, UNSIZED_LIMIT, "field data", decompressor,
-                                    base64.b64decode)
+                           base64.b64decode)
 
 
 def _check_one(text: str, header: np.dtype, limit: int, what: str, decompressor,
-                        b64decode) -> None:
+               b64decode) -> None:
     """One compressed base64 array as meshio decodes it: its header (three sizes and one
     per block) in base64 of its own, then the blocks."""
     size = header.itemsize
@@ -121,7 +124,7 @@ def _check_one(text: str, header: np.dtype, limit: int, what: str, decompressor,
     if len(blocks) < sum(csizes):
         raise ValueError(f"{what}: the data ends inside its compressed blocks")
     decompressed(blocks, 0, None, (int(head[1]), int(head[2])), csizes, limit, what,
-                  decompressor)
+                 decompressor)
 
 
 def _b64_chars(n: int) -> int:
