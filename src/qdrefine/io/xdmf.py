@@ -129,7 +129,8 @@ def _check_heavy_data(path: Path) -> None:
                 data = h5[dataset]
                 shape, stored = data.shape, data.id.get_storage_size()
                 needed = data.size * data.dtype.itemsize
-                filtered = bool(data._filters)  # compressed: stored < needed is normal
+                # compressed (any filter): stored < needed is normal
+                filtered = data.id.get_create_plist().get_nfilters() > 0
         except (ValueError, KeyError, OSError, AttributeError, TypeError):
             continue  # no or odd Dimensions, or a damaged file: the reader says what is wrong
         if needed and (stored == 0 or (not filtered and stored < needed)):
@@ -210,11 +211,15 @@ def _check_room(h5_path: Path, needed: int) -> None:
     (``ulimit -f``) or the free space of its folder cannot hold: HDF5 failing mid-write left
     h5py printing tracebacks while it cleaned up, then the process crashed (exit 139;
     review). A compressed file's size is not known beforehand: it is not checked."""
-    import resource
     import shutil
 
-    soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
-    if soft != resource.RLIM_INFINITY and needed > soft:
+    try:
+        import resource  # POSIX only
+        soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+        unlimited = soft == resource.RLIM_INFINITY
+    except ImportError:
+        soft, unlimited = 0, True
+    if not unlimited and needed > soft:
         raise cannot_write(h5_path, f"{os.strerror(errno.EFBIG)} (the HDF5 file needs about "
                                     f"{needed} bytes; the file size limit, ulimit -f, is "
                                     f"{soft} bytes)", errno.EFBIG)
