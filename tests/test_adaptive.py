@@ -164,6 +164,33 @@ def test_levels_refine_the_marked_children_again():
 
 
 @pytest.mark.parametrize("scheme", ["7t-qd", "4t-le"])
+def test_levels_refine_a_marked_transition_child_again(scheme):
+    """A marked transition child is refined through its family parent; with ``levels=2``
+    its area is refined again. It was not when every child of the parent that meets it was
+    smaller than it: levels 2 and 3 gave the level-1 mesh for 15 of the 51 transition
+    children of this mesh (review)."""
+    mesh = refine(examples.gmsh_mesh("l_shape"), scheme, marked=[10, 60])
+    green = np.flatnonzero(mesh.transitions[:, 0] >= 0)
+    assert green.size > 10
+
+    def cross(u, v):
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    def around(m: Mesh, point) -> float:
+        """The largest area of a triangle of ``m`` that holds ``point``."""
+        p = m.points[m.triangles]
+        d = np.stack([cross(p[:, (i + 1) % 3] - p[:, i], point - p[:, i]) for i in range(3)])
+        holds = (d >= 0).all(axis=0)
+        assert holds.any()
+        return float(cross(p[holds, 1] - p[holds, 0], p[holds, 2] - p[holds, 0]).max())
+
+    for t in green:
+        centre = np.array([0.41, 0.33, 0.26]) @ mesh.points[mesh.triangles[t]]
+        one, two = (refine(mesh, scheme, levels, marked=[t]) for levels in (1, 2))
+        assert around(two, centre) < around(one, centre) < around(mesh, centre), t
+
+
+@pytest.mark.parametrize("scheme", ["7t-qd", "4t-le"])
 def test_areas_are_conserved_exactly_on_an_exact_grid(scheme):
     """Coordinates that are multiples of 6 make every new point exact: equality holds."""
     mesh = jittered_grid(4, seed=5, shuffle=True)

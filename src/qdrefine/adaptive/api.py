@@ -82,7 +82,8 @@ def refine_marked(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd",
     scheme : {"7t-qd", "7t-le", "7t-d", "4t-le", "4t-red"}
     levels : int, >= 0
         With ``levels > 1`` the children of the marked triangles are marked again,
-        ``levels`` times in all.
+        ``levels`` times in all (of a marked transition child: the children of its
+        parent's partition that meet it).
 
     Returns
     -------

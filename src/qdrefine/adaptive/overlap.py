@@ -12,8 +12,11 @@ from .working import StepInput, Tree
 
 
 def overlap_marks(inp: StepInput, tree: Tree, kids: NDArray[np.int64]) -> None:
-    """Flag (``again``) the children ``kids (X, T)`` of the expanded parents of marked
-    members (in family order) whose interior meets a marked member."""
+    """Flag the children ``kids (X, T)`` of the expanded parents of marked members (in
+    family order) whose interior meets a marked member: those not smaller than it
+    (``again``) for the follow-up pass, the smaller ones as inside the marks (``user``),
+    so that ``levels > 1`` refines the marked member's area again (it stopped after one
+    level when every such child was smaller; review)."""
     if not inp.pairs.size:
         return
     k = inp.k
@@ -27,9 +30,10 @@ def overlap_marks(inp: StepInput, tree: Tree, kids: NDArray[np.int64]) -> None:
     ref = _reference(k)
     child = ref[_local(tree.triangles[nodes], sten)]  # (P, T, 3, 2)
     marked = ref[_local(inp.mesh.triangles[inp.pairs[:, 0]][:, None, :], sten)]  # (P, 1, 3, 2)
-    hit = _interiors_meet(child, np.broadcast_to(marked, child.shape))
-    hit &= _twice_area(child) >= _twice_area(marked)  # the smaller ones refine it already
-    tree.again[nodes[hit]] = True
+    meet = _interiors_meet(child, np.broadcast_to(marked, child.shape))
+    again = meet & (_twice_area(child) >= _twice_area(marked))  # smaller: refine it already
+    tree.again[nodes[again]] = True
+    tree.user[nodes[meet & ~again]] = True
 
 
 def _reference(k: int) -> NDArray[np.int64]:
