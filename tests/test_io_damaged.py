@@ -509,7 +509,8 @@ def test_a_compressed_vtu_block_cannot_expand_past_its_sizes(tmp_path, points, d
 @pytest.mark.parametrize("kind", ["NodeData", "ElementData"])
 def test_a_view_of_absurdly_many_components_is_refused_before_it_is_made(tmp_path, kind):
     """A 300-byte file whose view had no values and 1e8 components took 4 GB: the field was
-    made that wide, filled with NaN (review). Gmsh views have 1, 3 or 9 components."""
+    made that wide, filled with NaN (review). Gmsh views have 1, 3 or 9 components; wider
+    ones must give every row a value, as qdrefine writes them."""
     mesh = examples.square(1)
     rows = mesh.n_points if kind == "NodeData" else mesh.n_triangles
     data = {"u": np.arange(rows, dtype=float)}
@@ -521,9 +522,19 @@ def test_a_view_of_absurdly_many_components_is_refused_before_it_is_made(tmp_pat
     body = text[text.index(head):text.index(f"$End{kind}")]
     text = text.replace(body, f'${kind}\n1\n"u"\n1\n0\n3\n0\n100000000\n0\n')
     (tmp_path / "m.msh").write_text(text)
-    with pytest.raises(ValueError, match=rf"\${kind} 'u' has 100000000 components per value; "
-                                         "Gmsh views have 1, 3 or 9"):
+    where = "point" if kind == "NodeData" else "cell"
+    with pytest.raises(ValueError, match=rf"m.msh: {where} data 'u' has 100000000 components "
+                                         rf"but values for 0 of the {rows} rows"):
         qdrefine.read(tmp_path / "m.msh")
+    # a field wider than 9 that qdrefine wrote whole still reads back (review of the first
+    # version of this check, which refused it)
+    wide = {"w": np.arange(rows * 12, dtype=float).reshape(rows, 3, 4)}
+    mesh = mesh.replace(**({"point_data": wide} if kind == "NodeData" else {"cell_data": wide}))
+    for binary in (False, True):
+        qdrefine.write(tmp_path / "w.msh", mesh, binary=binary)
+        back = qdrefine.read(tmp_path / "w.msh")
+        got = back.point_data if kind == "NodeData" else back.cell_data
+        np.testing.assert_array_equal(got["w"], wide["w"])
 
 
 def test_a_binary_node_tag_beyond_int64_is_refused(tmp_path):

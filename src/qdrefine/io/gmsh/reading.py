@@ -679,9 +679,6 @@ def _data_section(kind: str):
         name = strings[0].strip('"') if strings else kind
         if components <= 0 or count < 0:
             raise f.error(start, f"${kind}: bad number of components or values")
-        if components > 9:  # a field of no values was still made that wide (review)
-            raise f.error(start, f"${kind} {name!r} has {components} components per value; "
-                                 "Gmsh views have 1, 3 or 9")
         if f.binary:
             rec = np.dtype([("tag", np.int32), ("v", np.float64, (components,))])
             values, end = f.take(pos, rec, count, f"${kind}")
@@ -892,8 +889,14 @@ def _field(f: _File, c: _Content, where: str, name: str, values: NDArray, rows: 
     over ``size`` rows (NaN where the file gives none), restored to the shape and dtype that
     ``$QdrefineData`` records where the record fits (:mod:`..recorded`; the writer pads a
     field to 1, 3 or 9 components with zeros)."""
-    out = np.full((size, values.shape[1]), np.nan)
     ok = rows >= 0
+    if values.shape[1] > 9 and np.count_nonzero(ok) < size:  # made that wide from a few
+        # values, or none: a 300-byte view of 1e8 components took 4 GB (review)
+        raise ValueError(f"{f.path}: {where} data {name!r} has {values.shape[1]} components "
+                         f"but values for {np.count_nonzero(ok)} of the {size} rows; Gmsh "
+                         "views have 1, 3 or 9 components, and qdrefine writes wider fields "
+                         "whole")
+    out = np.full((size, values.shape[1]), np.nan)
     out[rows[ok]] = values[ok]
     spec = record_of(c.dtypes, where, name)
     stored = out
