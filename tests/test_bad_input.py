@@ -1264,18 +1264,29 @@ def test_floats_wider_than_64_bits_are_refused_naming_the_file(tmp_path):
 def test_an_hdf5_dataset_never_written_is_refused(tmp_path):
     """HDF5 reads fill values for chunks never written: a 2.6 kB pair declaring 150 M
     points took 7.7 GB before the checks refused it (review). Refused from the storage the
-    file holds, before anything is read."""
+    file holds, before anything is read, beyond 64 MiB (a small one may be a writer's lazy
+    zeros); a virtual dataset, whose data is in its sources, is read."""
     import h5py
 
     qdrefine.write(tmp_path / "m.xdmf", examples.square(2))
     with h5py.File(tmp_path / "m.h5", "r+") as h5:
-        shape, dtype = h5["data0"].shape, h5["data0"].dtype
+        points = h5["data0"][()]
         del h5["data0"]
-        h5.create_dataset("data0", shape=shape, dtype=dtype, chunks=True)
-    with pytest.raises(ValueError, match=r"m.xdmf: the data item m.h5:/data0 declares 9 x 3 "
-                                         r"values, but the HDF5 file holds 0 of their 216 "
-                                         r"bytes \(data never written\)"):
+        h5.create_dataset("data0", shape=(3_000_000, 3), dtype=points.dtype, chunks=True)
+    xml = (tmp_path / "m.xdmf").read_text()
+    (tmp_path / "m.xdmf").write_text(xml.replace('Dimensions="9 3"', 'Dimensions="3000000 3"'))
+    with pytest.raises(ValueError, match=r"m.xdmf: the data item m.h5:/data0 declares 3000000 "
+                                         r"x 3 values, but the HDF5 file holds 0 of their "
+                                         r"72000000 bytes \(data never written\)"):
         qdrefine.read(tmp_path / "m.xdmf")
+    qdrefine.write(tmp_path / "v.xdmf", examples.square(2))
+    with h5py.File(tmp_path / "v.h5", "r+") as h5:  # data0 as a view of a source dataset
+        h5["source"] = h5["data0"][()]
+        layout = h5py.VirtualLayout(shape=h5["source"].shape, dtype=h5["source"].dtype)
+        layout[:] = h5py.VirtualSource(h5["source"])
+        del h5["data0"]
+        h5.create_virtual_dataset("data0", layout)
+    assert np.array_equal(qdrefine.read(tmp_path / "v.xdmf").points, examples.square(2).points)
     qdrefine.write(tmp_path / "z.xdmf", examples.square(2), compress=True)  # filtered: fine
     assert qdrefine.read(tmp_path / "z.xdmf").n_triangles == examples.square(2).n_triangles
 
@@ -1311,3 +1322,11 @@ def test_an_xdmf_write_past_the_file_size_limit_is_one_line(tmp_path, compress):
     assert err.startswith(f"qdrefine: error: {tmp_path / 'out.h5'}: cannot write: File too "
                           "large")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.msh"]
+    # a small mesh fits (the first estimate, 64 kB per dataset, refused 7.5 kB files)
+    small = ("import qdrefine, sys; from qdrefine import examples; "
+             "qdrefine.write(sys.argv[1], examples.square(2), compress=sys.argv[2] == '1')")
+    done = subprocess.run([sys.executable, "-c", small, str(tmp_path / "s.xdmf"),
+                           str(int(compress))], capture_output=True, text=True,
+                          preexec_fn=limit, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert qdrefine.read(tmp_path / "s.xdmf").n_triangles == examples.square(2).n_triangles

@@ -376,8 +376,8 @@ BAD_TRIANGLE = {
                         "sq.ele:2: the regional attribute 7.5"),
     # a float literal beyond 2**53 names no one integer (review: such tags were rounded)
     "float tag beyond 2**53": (".ele", ELE.replace("5 7\n", "5 9007199254740993.0\n", 1),
-                               "sq.ele:2: the regional attribute 9007199254740993.0 is not "
-                               "an integer tag"),
+                               "sq.ele:2: the regional attribute 9007199254740993.0 is a "
+                               "number of 2\\*\\*53 or more written as a float"),
     "tag beyond int64": (".ele", ELE.replace("5 7\n", f"5 {2**63}\n", 1),
                          f"sq.ele:2: the regional attribute {2**63} is beyond int64"),
     # Python's int() read 1_0 as 10 and Arabic-Indic digits as digits (review)

@@ -56,7 +56,7 @@ def _scaled_if_overflowing(formula, *values: NDArray) -> NDArray:
     overflow from finite values computed again on the values scaled by 1/4 and scaled back:
     scaling by a power of two is exact, so the result is the correctly scaled one."""
     values = tuple(_wide(v) for v in values)
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):  # inf - inf of complex overflow
         out = formula(*values)
     if out.dtype.kind not in "fc":
         return out

@@ -140,8 +140,13 @@ class _Lines:
                 number = float(word)
             except ValueError:
                 raise self.error(f"expected a number in {what}, got {word!r}", line) from None
-            if not (np.isfinite(number) and number == int(number) and abs(number) < 2**53):
+            if not (np.isfinite(number) and number == int(number)):
                 raise self.error(f"{what} {word} is not an integer tag", line) from None
+            if abs(number) >= 2**53:  # 1e16 is 10**16, but 1.152921504606847e+18 is not
+                # 2**60, whose text it rounds (Triangle writes %.17g): no one integer
+                raise self.error(f"{what} {word} is a number of 2**53 or more written as a "
+                                 "float, which names no one integer; write tags as integers",
+                                 line) from None
             value = int(number)
         if not -2**63 <= value < 2**63:
             raise self.error(f"{what} {word} is beyond int64", line)

@@ -13,7 +13,7 @@ import zlib
 
 import numpy as np
 
-__all__ = ["VTK_TYPES", "UNSIZED_LIMIT", "decompressed", "check_base64_blocks"]
+__all__ = ["VTK_TYPES", "UNSIZED_LIMIT", "decompressed", "check_base64_blocks", "components"]
 
 #: VTK data types and their NumPy dtypes.
 VTK_TYPES = {"Int8": "i1", "UInt8": "u1", "Int16": "<i2", "UInt16": "<u2", "Int32": "<i4",
@@ -56,9 +56,9 @@ def check_base64_blocks(data: bytes) -> None:
     """Decompress, bounded, every compressed base64 array (inline or appended) of a VTU
     that meshio reads, before it does: meshio decompresses each block whole, so a 209 kB
     file took 2.3 GB (review). Each array may expand to its header's block sizes and to the
-    bytes of its rows (points, cells; qdrefine's field data :data:`UNSIZED_LIMIT`; the
-    connectivity only to its header's sizes). Files this does not understand are left to
-    meshio, which refuses them."""
+    bytes of its rows (points, cells, the connectivity's from the largest offset;
+    qdrefine's field data :data:`UNSIZED_LIMIT`). Files this does not understand are left
+    to meshio, which refuses them."""
     import base64
     import lzma
 
@@ -81,21 +81,28 @@ def check_base64_blocks(data: bytes) -> None:
                   "PointData": int(piece.get("NumberOfPoints", "0")),
                   "CellData": int(piece.get("NumberOfCells", "0")),
                   "Cells": int(piece.get("NumberOfCells", "0"))}
+        connectivity = None  # its rows: the offsets' largest, read first
         for section in piece:
-            for item in section.iter("DataArray"):
+            items = sorted(section.iter("DataArray"),
+                           key=lambda item: item.get("Name") == "connectivity")
+            for item in items:
                 kind = VTK_TYPES.get(item.get("type", ""))
                 fmt = item.get("format")
                 if kind is None or fmt not in ("binary", "appended"):
                     continue
                 text = (item.text or "").strip() if fmt == "binary" else \
                     tail[int(item.get("offset", "0")):]
-                rows = None if item.get("Name") == "connectivity" else \
+                rows = connectivity if item.get("Name") == "connectivity" else \
                     counts.get(section.tag)
-                limit = sys.maxsize if rows is None else max(rows, 0) * max(
-                    int(item.get("NumberOfComponents", "1")), 1) * np.dtype(kind).itemsize
+                limit = sys.maxsize if rows is None else \
+                    max(rows, 0) * components(item) * np.dtype(kind).itemsize
                 name = item.get("Name")
-                _check_one(text, header, limit, f"DataArray {name!r}" if name else
-                           "an unnamed DataArray", decompressor, base64.b64decode)
+                raw = _check_one(text, header, limit, f"DataArray {name!r}" if name else
+                                 "an unnamed DataArray", decompressor, base64.b64decode)
+                if name == "offsets" and section.tag == "Cells":
+                    values = np.frombuffer(raw[:len(raw) // np.dtype(kind).itemsize
+                                               * np.dtype(kind).itemsize], dtype=kind)
+                    connectivity = int(values.max(initial=0))
     for item in root.iter("FieldData"):
         for array in item.iter("DataArray"):
             if array.get("format") in ("binary", "appended"):
@@ -106,9 +113,9 @@ def check_base64_blocks(data: bytes) -> None:
 
 
 def _check_one(text: str, header: np.dtype, limit: int, what: str, decompressor,
-               b64decode) -> None:
-    """One compressed base64 array as meshio decodes it: its header (three sizes and one
-    per block) in base64 of its own, then the blocks."""
+               b64decode) -> bytes:
+    """One compressed base64 array as meshio decodes it (its header, three sizes and one
+    per block, in base64 of its own, then the blocks): its bytes."""
     size = header.itemsize
     first = np.frombuffer(b64decode(text[:_b64_chars(size)])[:size], header)
     n_blocks = int(first[0]) if first.size else -1
@@ -123,8 +130,14 @@ def _check_one(text: str, header: np.dtype, limit: int, what: str, decompressor,
     blocks = b64decode(text[head_chars:head_chars + _b64_chars(sum(csizes))])
     if len(blocks) < sum(csizes):
         raise ValueError(f"{what}: the data ends inside its compressed blocks")
-    decompressed(blocks, 0, None, (int(head[1]), int(head[2])), csizes, limit, what,
-                 decompressor)
+    return decompressed(blocks, 0, None, (int(head[1]), int(head[2])), csizes, limit, what,
+                        decompressor)
+
+
+def components(item: ET.Element) -> int:
+    """``NumberOfComponents`` of a DataArray: 1 when absent or empty (Firedrake writes it
+    empty; meshio reads that as 1)."""
+    return max(int(item.get("NumberOfComponents") or "1"), 1)
 
 
 def _b64_chars(n: int) -> int:

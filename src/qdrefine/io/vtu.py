@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from ._core import TAG_NAMES, RawMesh, from_blocks, mesh_data, read_bytes, split_data, writable_data
 from .atomic import atomic_path
 from .recorded import record, record_of, restored
-from .vtk_blocks import UNSIZED_LIMIT, VTK_TYPES, check_base64_blocks, decompressed
+from .vtk_blocks import UNSIZED_LIMIT, VTK_TYPES, check_base64_blocks, components, decompressed
 from .xml_names import check_xml_names
 
 __all__ = ["read", "write"]
@@ -111,9 +111,8 @@ def _read(path: Path, data: bytes) -> RawMesh:
         if kind is None:
             raise ValueError(f"DataArray {item.get('Name')!r}: unknown type {item.get('type')}")
         offset = base + int(item.get("offset", "-1"))
-        comps = int(item.get("NumberOfComponents", "1"))
-        limit = UNSIZED_LIMIT if rows is None else \
-            max(rows, 0) * max(comps, 1) * np.dtype(kind).itemsize
+        comps = components(item)
+        limit = UNSIZED_LIMIT if rows is None else max(rows, 0) * comps * np.dtype(kind).itemsize
         name = item.get("Name")
         raw = _block(data, offset, header, compressor is not None, limit,
                      f"DataArray {name!r}" if name else "an unnamed DataArray")

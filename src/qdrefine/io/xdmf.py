@@ -129,13 +129,16 @@ def _check_heavy_data(path: Path) -> None:
                 data = h5[dataset]
                 shape, stored = data.shape, data.id.get_storage_size()
                 needed = data.size * data.dtype.itemsize
-                # compressed (any filter): stored < needed is normal
+                # compressed (any filter): stored < needed is normal; a virtual dataset's
+                # data is in its sources
                 filtered = data.id.get_create_plist().get_nfilters() > 0
+                virtual = data.is_virtual
         except (ValueError, KeyError, OSError, AttributeError, TypeError):
             continue  # no or odd Dimensions, or a damaged file: the reader says what is wrong
-        if needed and (stored == 0 or (not filtered and stored < needed)):
+        unwritten = not virtual and (stored == 0 or (not filtered and stored < needed))
+        if needed > _UNWRITTEN_LIMIT and unwritten:
             # never written: HDF5 reads fill values, as many as declared (a 2.6 kB file
-            # declaring 150 M points took 7.7 GB; review)
+            # declaring 150 M points took 7.7 GB; review); small ones are read
             raise ValueError(f"{path}: the data item {name}:{dataset} declares "
                              f"{' x '.join(map(str, shape))} values, but the HDF5 file holds "
                              f"{stored} of their {needed} bytes (data never written)")
@@ -144,6 +147,11 @@ def _check_heavy_data(path: Path) -> None:
                              f"\"{dimensions}\", but the HDF5 dataset holds "
                              f"{' x '.join(map(str, shape))} values (a replaced or "
                              "mismatched HDF5 file)")
+
+
+#: Bytes of a dataset whose data was never written beyond which it is refused rather than
+#: read as fill values (a small one may be a writer's lazy zeros; meshio reads it).
+_UNWRITTEN_LIMIT = 1 << 26
 
 
 def _check_binary_file(path: Path, name: str) -> None:
@@ -201,9 +209,9 @@ def _check_names(path: Path, mesh) -> None:
     check_xml_names(path, mesh)
 
 
-#: Bytes of HDF5 bookkeeping per dataset (and for the file), beyond the data itself: an
-#: estimate well above what h5py writes for a small dataset (about 2 kB).
-_H5_OVERHEAD = 1 << 16
+#: Bytes of HDF5 bookkeeping per dataset (and for the file), beyond the data itself: above
+#: what h5py writes (a file of three small datasets and an attribute takes 7.5 kB).
+_H5_OVERHEAD = 1 << 12
 
 
 def _check_room(h5_path: Path, needed: int) -> None:
@@ -323,7 +331,7 @@ def write(path: Path, mesh, *, binary: bool = True, compress: bool = False  # no
     xml[0] = xml[0].replace("?>\n", f"?>\n<!-- qdrefine set {stamp} -->\n", 1)
     if not compress:
         _check_room(h5_path, sum(a.nbytes for _, a in datasets) + _H5_OVERHEAD * (
-            1 + len(datasets)))
+            4 + len(datasets)))
     with atomic_paths([h5_path, path]) as (h5_tmp, xml_tmp):
         # a compressed file is made in memory (its size is not known beforehand, and HDF5
         # failing mid-write crashed the process) and written by Python, whose failures are
