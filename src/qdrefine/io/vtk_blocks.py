@@ -7,13 +7,15 @@ meshio reads them, the base64 arrays that meshio decompresses whole)."""
 
 from __future__ import annotations
 
+import lzma
 import sys
 import xml.etree.ElementTree as ET
 import zlib
 
 import numpy as np
 
-__all__ = ["VTK_TYPES", "UNSIZED_LIMIT", "decompressed", "check_base64_blocks", "components"]
+__all__ = ["VTK_TYPES", "UNSIZED_LIMIT", "DECOMPRESSORS", "decompressed", "check_base64_blocks",
+           "components"]
 
 #: VTK data types and their NumPy dtypes.
 VTK_TYPES = {"Int8": "i1", "UInt8": "u1", "Int16": "<i2", "UInt16": "<u2", "Int32": "<i4",
@@ -22,6 +24,11 @@ VTK_TYPES = {"Int8": "i1", "UInt8": "u1", "Int16": "<i2", "UInt16": "<u2", "Int3
 
 #: The most bytes a compressed array of unknown size (qdrefine's field data) may expand to.
 UNSIZED_LIMIT = 1 << 26
+
+#: VTK's compressors that the readers decompress: their streams (``decompress(data,
+#: max_length)``, ``eof``).
+DECOMPRESSORS = {"vtkZLibDataCompressor": zlib.decompressobj,
+                 "vtkLZMADataCompressor": lzma.LZMADecompressor}
 
 
 def decompressed(data: bytes, pos: int, where: int | None, sizes: tuple[int, int],
@@ -60,15 +67,12 @@ def check_base64_blocks(data: bytes) -> None:
     qdrefine's field data :data:`UNSIZED_LIMIT`). Files this does not understand are left
     to meshio, which refuses them."""
     import base64
-    import lzma
 
     try:
         root = ET.fromstring(data)
     except ET.ParseError:
         return  # raw appended data (not XML): meshio refuses it, in its own words
-    compressors = {"vtkZLibDataCompressor": zlib.decompressobj,
-                   "vtkLZMADataCompressor": lzma.LZMADecompressor}
-    decompressor = compressors.get(root.get("compressor", ""))
+    decompressor = DECOMPRESSORS.get(root.get("compressor", ""))
     if decompressor is None:
         return
     header = np.dtype("<u8" if root.get("header_type") == "UInt64" else "<u4")

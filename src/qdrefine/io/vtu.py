@@ -8,8 +8,8 @@ names, and each field's shape and dtype) that qdrefine reads back and other read
 ignore. The data is appended raw (the fastest to write and read), or zlib-compressed with
 ``compress=True``; ParaView and meshio read both.
 
-Read: appended raw or zlib data with 32- or 64-bit headers; any other VTU (inline ASCII or
-base64, several pieces, other compressors) goes to meshio.
+Read: appended raw, zlib or lzma data with 32- or 64-bit headers; any other VTU (inline ASCII
+or base64, several pieces, other compressors) goes to meshio.
 """
 
 from __future__ import annotations
@@ -28,7 +28,14 @@ from numpy.typing import NDArray
 from ._core import TAG_NAMES, RawMesh, from_blocks, mesh_data, read_bytes, split_data, writable_data
 from .atomic import atomic_path
 from .recorded import record, record_of, restored
-from .vtk_blocks import UNSIZED_LIMIT, VTK_TYPES, check_base64_blocks, components, decompressed
+from .vtk_blocks import (
+    DECOMPRESSORS,
+    UNSIZED_LIMIT,
+    VTK_TYPES,
+    check_base64_blocks,
+    components,
+    decompressed,
+)
 from .xml_names import check_xml_names
 
 __all__ = ["read", "write"]
@@ -66,7 +73,7 @@ def read(path: Path) -> RawMesh:
             raise ValueError(f"{path}: not a readable VTK XML unstructured grid file "
                              f"({str(exc)[:200] or type(exc).__name__})") from None
         return read_with_meshio(path, "vtu", "VTK XML unstructured grid")
-    except (ValueError, KeyError, IndexError, ET.ParseError, zlib.error) as exc:
+    except (ValueError, KeyError, IndexError, ET.ParseError, zlib.error, LZMAError) as exc:
         if str(exc).startswith(str(path)):
             raise
         raise ValueError(f"{path}: not a readable VTK XML unstructured grid file "
@@ -93,8 +100,9 @@ def _read(path: Path, data: bytes) -> RawMesh:
         raise _Fallback
     header = np.dtype("<u8" if root.get("header_type") == "UInt64" else "<u4")
     compressor = root.get("compressor")
-    if compressor not in (None, "vtkZLibDataCompressor"):
+    if compressor is not None and compressor not in DECOMPRESSORS:
         raise _Fallback
+    decompressor = None if compressor is None else DECOMPRESSORS[compressor]
     pieces = root.findall("./UnstructuredGrid/Piece")
     if len(pieces) != 1:
         raise _Fallback
@@ -114,7 +122,7 @@ def _read(path: Path, data: bytes) -> RawMesh:
         comps = components(item)
         limit = UNSIZED_LIMIT if rows is None else max(rows, 0) * comps * np.dtype(kind).itemsize
         name = item.get("Name")
-        raw = _block(data, offset, header, compressor is not None, limit,
+        raw = _block(data, offset, header, decompressor, limit,
                      f"DataArray {name!r}" if name else "an unnamed DataArray")
         a = np.frombuffer(raw, dtype=kind)
         if comps < 1 or len(a) % comps:
@@ -204,15 +212,16 @@ def _meta(root: ET.Element, array) -> dict:
     return {}
 
 
-def _block(data: bytes, offset: int, header: np.dtype, compressed: bool, limit: int,
+def _block(data: bytes, offset: int, header: np.dtype, decompressor, limit: int,
            what: str) -> bytes:
-    """The bytes of the appended block at ``offset``: raw ones bounded by the file size,
-    compressed ones by ``limit`` (what the data ``what`` can hold) and by the sizes of its
-    header, checked while decompressing (at most ``limit + 1`` bytes are ever made)."""
+    """The bytes of the appended block at ``offset``: raw ones (``decompressor`` None)
+    bounded by the file size, compressed ones by ``limit`` (what the data ``what`` can
+    hold) and by the sizes of its header, checked while decompressing (at most
+    ``limit + 1`` bytes are ever made)."""
     size = header.itemsize
     if offset < 0 or offset + size > len(data):
         raise ValueError(f"byte {offset}: appended data offset outside the file")
-    if not compressed:
+    if decompressor is None:
         nbytes = int(np.frombuffer(data, header, 1, offset)[0])
         if offset + size + nbytes > len(data):
             raise ValueError(f"byte {offset}: the file ends inside an appended block of "
@@ -229,7 +238,7 @@ def _block(data: bytes, offset: int, header: np.dtype, compressed: bool, limit: 
     if pos + int(csizes.sum()) > len(data):
         raise ValueError(f"byte {offset}: the file ends inside compressed data")
     return decompressed(data, pos, offset, (block_size, last_size), csizes.tolist(), limit,
-                         what, zlib.decompressobj)
+                        what, decompressor)
 
 
 # --------------------------------------------------------------------------------------------
