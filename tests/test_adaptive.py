@@ -309,9 +309,13 @@ def test_repeated_cycles_keep_the_minimum_angle():
 def test_bad_marks_raise():
     mesh = examples.square(2)
     for bad, what in (([8], "outside"), ([-1], "outside"), (np.ones(3, bool), "shape"),
-                      ([0.5], "dtype"), ([[0, 1]], "one-dimensional")):
+                      ([0.5], "dtype"), ([[0, 1]], "one-dimensional"),
+                      # its mask was dropped: the masked mark refined (review)
+                      (np.ma.array([0, 1], mask=[0, 1]), "masked entries")):
         with pytest.raises(ValueError, match=what):
             refine(mesh, marked=bad)
+    with pytest.raises(ValueError, match="masked entries"):
+        coarsen(refine(mesh, marked=[0]), np.ma.array([0, 1], mask=[0, 1]))
     with pytest.raises(ValueError, match="levels"):
         refine(mesh, levels=-1, marked=[0])
     for flag in (True, np.True_):  # a bool is not a count (True was read as 1, review)

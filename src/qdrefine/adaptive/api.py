@@ -34,7 +34,11 @@ def is_integer_mask(ids: NDArray[np.integer], n_triangles: int) -> bool:
 
 def as_mask(marked: ArrayLike, n_triangles: int) -> NDArray[np.bool_]:
     """A boolean mask ``(M,)`` from a mask or an array of triangle indices; ``ValueError``
-    for ``M > 2`` integers all 0 or 1 (a mask stored as integers, not indices)."""
+    for ``M > 2`` integers all 0 or 1 (a mask stored as integers, not indices), and for a
+    NumPy masked array with masked entries (``np.asarray`` dropped its mask; review)."""
+    if np.ma.is_masked(marked):
+        raise ValueError("marked has masked entries; give a plain mask or index array (e.g. "
+                         "marked.filled(False) or marked.compressed())")
     a = np.asarray(marked)
     if a.dtype == bool:
         if a.shape != (n_triangles,):
