@@ -129,24 +129,23 @@ def orientation(found: Findings, p: NDArray, t: NDArray, flip: bool) -> tuple[bo
     signs = orient_signs(p, t)
     zero = signs == 0
     cw = signs < 0
-    reports = []
+    reports = []  # (order, row named, kind, message, count, severity)
     if zero.any():
         i = int(np.flatnonzero(zero)[0])
-        reports.append((i, "zero-area", misoriented(found.triangle(i), found.ids(t[i]), True),
+        reports.append((i, i, "zero-area", misoriented(found.triangle(i), found.ids(t[i]), True),
                         np.count_nonzero(zero), ""))
     if cw.any():
         i = int(np.flatnonzero(cw)[0])
         k = int(np.count_nonzero(cw))
-        if flip:
-            reports.append((len(t), "clockwise", f"{k} of {len(t)} triangles were clockwise and "
-                            "have been flipped", k, "warning"))
+        if flip:  # a warning, after any error
+            reports.append((len(t), i, "clockwise", f"{k} of {len(t)} triangles were clockwise "
+                            "and have been flipped", k, "warning"))
         else:
-            reports.append((i, "clockwise", misoriented(found.triangle(i), found.ids(t[i]),
-                                                        False), k, ""))
-    for i, kind, message, count, severity in sorted(reports, key=lambda r: r[0]):
-        row = i if i < len(t) else int(np.flatnonzero(cw)[0])
-        found.add(kind, message, count, severity, triangle=found.triangle(row),
-                  vertices=found.ids(t[row]))
+            reports.append((i, i, "clockwise", misoriented(found.triangle(i), found.ids(t[i]),
+                                                           False), k, ""))
+    for _, i, kind, message, count, severity in sorted(reports, key=lambda r: r[0]):
+        found.add(kind, message, count, severity, triangle=found.triangle(i),
+                  vertices=found.ids(t[i]))
     if flip and cw.any():
         t[cw] = t[cw][:, ::-1]
     return not zero.any() and (flip or not cw.any()), not zero.any()

@@ -1,5 +1,6 @@
 """What every reader and writer shares: the raw content of a file (:class:`RawMesh`), the
-conversion of cell blocks to triangles and tags, atomic writes and file checks."""
+conversion of cell blocks to triangles and tags, the chunks that writers stream
+(:class:`MeshChunks`) and file checks (atomic writes: :mod:`.atomic`)."""
 
 from __future__ import annotations
 
@@ -14,8 +15,7 @@ from numpy.typing import NDArray
 
 from ..check import Problem
 from ..mesh import HISTORY_CELL_DATA
-
-PathLike = str | os.PathLike
+from .atomic import PathLike
 
 #: The cell-data names under which :attr:`qdrefine.Mesh.transitions` and
 #: :attr:`qdrefine.Mesh.origins` are stored in files (reserved: ``Mesh`` refuses them as

@@ -7,6 +7,7 @@ meshio reads them, the base64 arrays that meshio decompresses whole)."""
 
 from __future__ import annotations
 
+import base64
 import lzma
 import sys
 import xml.etree.ElementTree as ET
@@ -66,8 +67,6 @@ def check_base64_blocks(data: bytes) -> None:
     bytes of its rows (points, cells, the connectivity's from the largest offset;
     qdrefine's field data :data:`UNSIZED_LIMIT`). Files this does not understand are left
     to meshio, which refuses them."""
-    import base64
-
     try:
         root = ET.fromstring(data)
     except ET.ParseError:
@@ -87,51 +86,56 @@ def check_base64_blocks(data: bytes) -> None:
                   "Cells": int(piece.get("NumberOfCells", "0"))}
         connectivity = None  # its rows: the offsets' largest, read first
         for section in piece:
+            if section.tag == "FieldData":
+                continue  # below, with every field data
             items = sorted(section.iter("DataArray"),
                            key=lambda item: item.get("Name") == "connectivity")
             for item in items:
                 kind = VTK_TYPES.get(item.get("type", ""))
-                fmt = item.get("format")
-                if kind is None or fmt not in ("binary", "appended"):
+                text = _base64_text(item, tail)
+                if kind is None or text is None:
                     continue
-                text = (item.text or "").strip() if fmt == "binary" else \
-                    tail[int(item.get("offset", "0")):]
-                rows = connectivity if item.get("Name") == "connectivity" else \
-                    counts.get(section.tag)
+                name = item.get("Name")
+                rows = connectivity if name == "connectivity" else counts.get(section.tag)
                 limit = sys.maxsize if rows is None else \
                     max(rows, 0) * components(item) * np.dtype(kind).itemsize
-                name = item.get("Name")
                 raw = _check_one(text, header, limit, f"DataArray {name!r}" if name else
-                                 "an unnamed DataArray", decompressor, base64.b64decode)
+                                 "an unnamed DataArray", decompressor)
                 if name == "offsets" and section.tag == "Cells":
-                    values = np.frombuffer(raw[:len(raw) // np.dtype(kind).itemsize
-                                               * np.dtype(kind).itemsize], dtype=kind)
+                    values = np.frombuffer(raw, kind, len(raw) // np.dtype(kind).itemsize)
                     connectivity = int(values.max(initial=0))
     for item in root.iter("FieldData"):
         for array in item.iter("DataArray"):
-            if array.get("format") in ("binary", "appended"):
-                text = (array.text or "").strip() if array.get("format") == "binary" else \
-                    tail[int(array.get("offset", "0")):]
-                _check_one(text, header, UNSIZED_LIMIT, "field data", decompressor,
-                           base64.b64decode)
+            text = _base64_text(array, tail)
+            if text is not None:
+                _check_one(text, header, UNSIZED_LIMIT, "field data", decompressor)
 
 
-def _check_one(text: str, header: np.dtype, limit: int, what: str, decompressor,
-               b64decode) -> bytes:
+def _base64_text(item: ET.Element, tail: str) -> str | None:
+    """The base64 text of a DataArray as meshio reads it: its own text (``binary``) or the
+    appended data from its offset on; None for other formats."""
+    if item.get("format") == "binary":
+        return (item.text or "").strip()
+    if item.get("format") == "appended":
+        return tail[int(item.get("offset", "0")):]
+    return None
+
+
+def _check_one(text: str, header: np.dtype, limit: int, what: str, decompressor) -> bytes:
     """One compressed base64 array as meshio decodes it (its header, three sizes and one
     per block, in base64 of its own, then the blocks): its bytes."""
     size = header.itemsize
-    first = np.frombuffer(b64decode(text[:_b64_chars(size)])[:size], header)
+    first = np.frombuffer(base64.b64decode(text[:_b64_chars(size)])[:size], header)
     n_blocks = int(first[0]) if first.size else -1
     if not 0 <= n_blocks <= len(text):
         raise ValueError(f"{what}: bad compressed block header")
     head_chars = _b64_chars((3 + n_blocks) * size)
-    head = np.frombuffer(b64decode(text[:head_chars])[:(3 + n_blocks) * size],
+    head = np.frombuffer(base64.b64decode(text[:head_chars])[:(3 + n_blocks) * size],
                          header).astype(np.int64)
     if len(head) != 3 + n_blocks or head.min(initial=0) < 0:
         raise ValueError(f"{what}: bad compressed block header")
     csizes = head[3:].tolist()
-    blocks = b64decode(text[head_chars:head_chars + _b64_chars(sum(csizes))])
+    blocks = base64.b64decode(text[head_chars:head_chars + _b64_chars(sum(csizes))])
     if len(blocks) < sum(csizes):
         raise ValueError(f"{what}: the data ends inside its compressed blocks")
     return decompressed(blocks, 0, None, (int(head[1]), int(head[2])), csizes, limit, what,

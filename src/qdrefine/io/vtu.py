@@ -125,7 +125,7 @@ def _read(path: Path, data: bytes) -> RawMesh:
         raw = _block(data, offset, header, decompressor, limit,
                      f"DataArray {name!r}" if name else "an unnamed DataArray")
         a = np.frombuffer(raw, dtype=kind)
-        if comps < 1 or len(a) % comps:
+        if len(a) % comps:  # components() is at least 1
             raise ValueError(f"byte {offset}: DataArray {item.get('Name')!r} holds {len(a)} "
                              f"values, not a multiple of {comps} components")
         return a.reshape(-1, comps) if comps > 1 else a
