@@ -8,8 +8,9 @@ names, and each field's shape and dtype) that qdrefine reads back and other read
 ignore. The data is appended raw (the fastest to write and read), or zlib-compressed with
 ``compress=True``; ParaView and meshio read both.
 
-Read: appended raw, zlib or lzma data with 32- or 64-bit headers; any other VTU (inline ASCII
-or base64, several pieces, other compressors) goes to meshio.
+Read: appended raw, zlib or lzma data with 32- or 64-bit headers, little- or big-endian, in
+one or several pieces (joined in order, as meshio joins them); any other VTU (inline ASCII or
+base64, other compressors) goes to meshio.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import xml.etree.ElementTree as ET
 import zlib
 from lzma import LZMAError
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,6 +50,8 @@ _CELLS = {1: ("vertex", 1), 3: ("line", 2), 5: ("triangle", 3), 9: ("quad", 4),
           2: ("poly_vertex", 0), 4: ("polyline", 0), 6: ("triangle_strip", 0),
           7: ("polygon", 0), 8: ("pixel", 4), 11: ("voxel", 8)}
 _META = "qdrefine"
+#: VTK XML byte orders and NumPy's.
+_BYTE_ORDERS = {"LittleEndian": "<", "BigEndian": ">"}
 _CHUNK = 1 << 20  # bytes per compressed block
 
 
@@ -96,65 +100,56 @@ def _read(path: Path, data: bytes) -> RawMesh:
     root = ET.fromstring(data[:start] + b"</VTKFile>")
     if root.tag != "VTKFile" or root.get("type") != "UnstructuredGrid":
         raise ValueError("not a VTKFile of type UnstructuredGrid")
-    if root.get("byte_order", "LittleEndian") != "LittleEndian":
-        raise _Fallback
-    header = np.dtype("<u8" if root.get("header_type") == "UInt64" else "<u4")
+    order = _BYTE_ORDERS.get(root.get("byte_order", "LittleEndian"))
+    if order is None:
+        raise ValueError(f"unknown byte_order {root.get('byte_order')!r}")
+    header = np.dtype("u8" if root.get("header_type") == "UInt64" else "u4").newbyteorder(order)
     compressor = root.get("compressor")
     if compressor is not None and compressor not in DECOMPRESSORS:
         raise _Fallback
     decompressor = None if compressor is None else DECOMPRESSORS[compressor]
     pieces = root.findall("./UnstructuredGrid/Piece")
-    if len(pieces) != 1:
-        raise _Fallback
-    piece = pieces[0]
+    if not pieces:
+        raise ValueError("no Piece")
     base = underscore + 1
 
     def array(item: ET.Element, rows: int | None) -> NDArray:
-        """The values of ``item``; a compressed block decompresses to at most the bytes of
-        its ``rows`` (None: :data:`UNSIZED_LIMIT`), so that a small file cannot expand
-        into gigabytes before its sizes are checked."""
+        """The values of ``item`` in native byte order; a compressed block decompresses to
+        at most the bytes of its ``rows`` (None: :data:`UNSIZED_LIMIT`), so that a small
+        file cannot expand into gigabytes before its sizes are checked."""
         if item.get("format") != "appended":
             raise _Fallback
         kind = VTK_TYPES.get(item.get("type", ""))
         if kind is None:
             raise ValueError(f"DataArray {item.get('Name')!r}: unknown type {item.get('type')}")
+        kind = np.dtype(kind).newbyteorder(order)
         offset = base + int(item.get("offset", "-1"))
         comps = components(item)
-        limit = UNSIZED_LIMIT if rows is None else max(rows, 0) * comps * np.dtype(kind).itemsize
+        limit = UNSIZED_LIMIT if rows is None else max(rows, 0) * comps * kind.itemsize
         name = item.get("Name")
         raw = _block(data, offset, header, decompressor, limit,
                      f"DataArray {name!r}" if name else "an unnamed DataArray")
-        a = np.frombuffer(raw, dtype=kind)
+        a = np.frombuffer(raw, dtype=kind).astype(kind.newbyteorder("="), copy=False)
         if len(a) % comps:  # components() is at least 1
             raise ValueError(f"byte {offset}: DataArray {item.get('Name')!r} holds {len(a)} "
                              f"values, not a multiple of {comps} components")
         return a.reshape(-1, comps) if comps > 1 else a
 
-    n = int(piece.get("NumberOfPoints", "-1"))
-    n_cells = int(piece.get("NumberOfCells", "-1"))
-    points_item = piece.find("./Points/DataArray")
-    if points_item is None:
-        raise ValueError("no Points")
-    points = array(points_item, n).astype(np.float64)
-    if points.ndim != 2 or len(points) != n:
-        raise ValueError(f"Points: expected {n} points")
-    cells = {item.get("Name"): item for item in piece.findall("./Cells/DataArray")}
-    if {"connectivity", "offsets", "types"} - set(cells):
-        raise ValueError("Cells needs connectivity, offsets and types")
-    offsets = array(cells["offsets"], n_cells).astype(np.int64).ravel()
-    types = array(cells["types"], n_cells).astype(np.int64).ravel()
-    if len(offsets) != n_cells or len(types) != n_cells:
-        raise ValueError(f"Cells: expected {n_cells} offsets and types")
-    conn = array(cells["connectivity"], int(offsets.max(initial=0))).astype(np.int64).ravel()
+    parts = []
+    for i, piece in enumerate(pieces):
+        try:
+            parts.append(_piece(piece, array))
+        except ValueError as exc:
+            if len(pieces) == 1:
+                raise
+            raise ValueError(f"Piece {i}: {exc}") from None
+    points, offsets, types, conn, cell_fields, point_data = _joined(parts)
     starts = np.concatenate([[0], offsets[:-1]])
     sizes = offsets - starts
-    if n_cells and (sizes.min() < 0 or offsets[-1] > len(conn)):
-        raise ValueError("Cells: offsets do not fit the connectivity")
-    field_items = {item.get("Name"): item for item in piece.findall("./CellData/DataArray")}
-    key = next((k for k in TAG_NAMES if k in field_items), None)
-    cell_tags = array(field_items[key], n_cells).ravel() if key else None
-    if cell_tags is not None and len(cell_tags) != n_cells:
-        raise ValueError(f"CellData {key!r}: expected {n_cells} values")
+    key = next((k for k in TAG_NAMES if k in cell_fields), None)
+    cell_tags = cell_fields[key].ravel() if key else None
+    if cell_tags is not None and len(cell_tags) != len(types):
+        raise ValueError(f"CellData {key!r}: expected {len(types)} values")
     blocks, tags, triangle_cells = [], [], np.empty(0, np.int64)
     for t in np.unique(types).tolist():
         rows = np.flatnonzero(types == t)
@@ -184,21 +179,86 @@ def _read(path: Path, data: bytes) -> RawMesh:
                        f"{path}: {where} data {name!r}")
         return np.array(values) if out is None else out
 
-    point_data = {}
-    for item in piece.findall("./PointData/DataArray"):
-        name = item.get("Name", "")
-        point_data[name] = kept(array(item, n), "point", name, n)
-    cell_data = {}
-    for name, item in field_items.items():
-        if name == key and name in TAG_NAMES:
-            continue
-        values = array(item, n_cells)
-        if len(values) != n_cells:
-            raise ValueError(f"CellData {name!r}: expected {n_cells} rows")
-        cell_data[name] = kept(values[triangle_cells], "cell", name, len(triangle_cells))
+    point_data = {name: kept(values, "point", name, len(points))
+                  for name, values in point_data.items()}
+    cell_data = {name: kept(values[triangle_cells], "cell", name, len(triangle_cells))
+                 for name, values in cell_fields.items() if name != key}
     if len(raw.triangles):
         split_data(raw, point_data, cell_data)
     return raw
+
+
+class _Piece(NamedTuple):
+    """The arrays of one ``Piece``: points, cells (offsets, types, connectivity) and its
+    cell and point data by name."""
+
+    points: NDArray[np.float64]
+    offsets: NDArray[np.int64]
+    types: NDArray[np.int64]
+    conn: NDArray[np.int64]
+    cell_fields: dict[str, NDArray]
+    point_fields: dict[str, NDArray]
+
+
+def _piece(piece: ET.Element, array) -> _Piece:
+    """The arrays of ``piece``, each checked against its ``NumberOfPoints`` and
+    ``NumberOfCells`` (``array(item, rows)``: a DataArray's values)."""
+    n = int(piece.get("NumberOfPoints", "-1"))
+    n_cells = int(piece.get("NumberOfCells", "-1"))
+    points_item = piece.find("./Points/DataArray")
+    if points_item is None:
+        raise ValueError("no Points")
+    points = array(points_item, n).astype(np.float64)
+    if points.ndim != 2 or len(points) != n:
+        raise ValueError(f"Points: expected {n} points")
+    cells = {item.get("Name"): item for item in piece.findall("./Cells/DataArray")}
+    if {"connectivity", "offsets", "types"} - set(cells):
+        raise ValueError("Cells needs connectivity, offsets and types")
+    offsets = array(cells["offsets"], n_cells).astype(np.int64).ravel()
+    types = array(cells["types"], n_cells).astype(np.int64).ravel()
+    if len(offsets) != n_cells or len(types) != n_cells:
+        raise ValueError(f"Cells: expected {n_cells} offsets and types")
+    conn = array(cells["connectivity"], int(offsets.max(initial=0))).astype(np.int64).ravel()
+    if n_cells and (np.diff(offsets, prepend=0).min() < 0 or offsets[-1] > len(conn)):
+        raise ValueError("Cells: offsets do not fit the connectivity")
+    cell_fields = {}
+    for item in piece.findall("./CellData/DataArray"):
+        name = item.get("Name", "")
+        values = array(item, n_cells)
+        if len(values) != n_cells:
+            raise ValueError(f"CellData {name!r}: expected {n_cells} rows")
+        cell_fields[name] = values
+    point_fields = {item.get("Name", ""): array(item, n)
+                    for item in piece.findall("./PointData/DataArray")}
+    return _Piece(points, offsets, types, conn[:int(offsets[-1]) if n_cells else 0],
+                  cell_fields, point_fields)
+
+
+def _joined(parts: list[_Piece]) -> _Piece:
+    """One piece of ``parts``, in order: points numbered on from the previous pieces', cells
+    after theirs; every piece must hold the same cell and point data (as meshio reads
+    them)."""
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    for i, part in enumerate(parts[1:], 1):
+        for what, mine, theirs in (("cell", part.cell_fields, first.cell_fields),
+                                   ("point", part.point_fields, first.point_fields)):
+            if sorted(mine) != sorted(theirs):
+                raise ValueError(f"Piece {i} has {what} data {sorted(mine)}, Piece 0 "
+                                 f"{sorted(theirs)}")
+    point_start = np.cumsum([0] + [len(p.points) for p in parts[:-1]])
+    conn_start = np.cumsum([0] + [len(p.conn) for p in parts[:-1]])
+
+    def fields(which: str) -> dict[str, NDArray]:
+        return {name: np.concatenate([getattr(p, which)[name] for p in parts])
+                for name in getattr(first, which)}
+
+    return _Piece(np.concatenate([p.points for p in parts]),
+                  np.concatenate([p.offsets + s for p, s in zip(parts, conn_start, strict=True)]),
+                  np.concatenate([p.types for p in parts]),
+                  np.concatenate([p.conn + s for p, s in zip(parts, point_start, strict=True)]),
+                  fields("cell_fields"), fields("point_fields"))
 
 
 def _meta(root: ET.Element, array) -> dict:
