@@ -134,6 +134,9 @@ def test_helpers_refuse_ids_outside_the_fields():
             interpolate_point_data(u, ends, k)
     with pytest.raises(ValueError, match="parents has id -1, outside the 2 rows of cell_data"):
         inherit_cell_data({"c": np.array([1, 2])}, [-1])
+    # a uint64 id of 2**63 or more is named as given (it wrapped to a negative id)
+    with pytest.raises(ValueError, match="parents has id 9223372036854775809, outside"):
+        inherit_cell_data({"c": np.array([1, 2])}, np.array([2**63 + 1], np.uint64))
     assert interpolate_point_data({"u": np.array([1.0, 4.0])}, [[0, 1]], 2)["u"].tolist() == \
         [2.0, 3.0]
 

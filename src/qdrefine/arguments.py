@@ -31,8 +31,8 @@ def as_ids(value: object, n: int, what: str, rows: str) -> NDArray[np.int64]:
     if ids.size and ids.dtype.kind not in "iu":
         hint = " (a boolean mask? pass np.flatnonzero(mask))" if ids.dtype.kind == "b" else ""
         raise ValueError(f"{what} must hold integers, got dtype {ids.dtype}{hint}")
-    ids = ids.astype(np.int64).ravel()
-    bad = (ids < 0) | (ids >= n)
+    ids = ids.ravel()
+    bad = (ids < 0) | (ids >= n)  # before int64: a uint64 of 2**63 or more would wrap
     if bad.any():
         raise ValueError(f"{what} has id {int(ids[bad][0])}, outside the {n} {rows}")
-    return ids
+    return ids.astype(np.int64)
