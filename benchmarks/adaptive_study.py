@@ -24,6 +24,7 @@ Parts (each writes its results into one JSON file and figures under ``docs/img/`
 Usage::
 
     python benchmarks/adaptive_study.py [--cycles 12] [--parts afem,loops,history,bounds]
+    python benchmarks/adaptive_study.py --plot-only benchmarks/results/adaptive-DATE.json
 """
 
 from __future__ import annotations
@@ -165,23 +166,30 @@ def part_bounds(cycles):  # noqa: ARG001
 
 
 def plot_loops(loops, history, png):
+    """The smallest angle per cycle over the initial one. The rows' ``cycle`` counts the
+    refinements from 0 (row ``c``: the mesh after ``c + 1`` of them); the figure numbers
+    cycles as the AFEM figure does (0: the initial mesh, ratio 1; ``c``: after ``c``
+    refinements)."""
     fig, ax = plt.subplots(figsize=(10, 4.5))
     styles = iter([("o", "-"), ("s", "--"), ("^", "-."), ("D", ":"), ("v", "-"), ("P", "--"),
                    ("*", "-.")])
+
+    def curve(rows):
+        return ([0] + [r["cycle"] + 1 for r in rows],
+                [1.0] + [r["min_angle_ratio"] for r in rows])
+
     for name, res in loops.items():
         marker, line = next(styles)
-        ax.plot([r["cycle"] for r in res["cycles"]],
-                [r["min_angle_ratio"] for r in res["cycles"]], marker=marker, linestyle=line,
+        ax.plot(*curve(res["cycles"]), marker=marker, linestyle=line,
                 label=f"{name.split(' (')[0]}, f = 1, Doerfler {res['theta']}")
     if history:
         for key, line in (("with history", "-"), ("history dropped", ":")):
-            rows = history[key]
-            ax.plot([r["cycle"] for r in rows], [r["min_angle_ratio"] for r in rows],
-                    marker="x", linestyle=line, color="black", label=f"L-shape AFEM, {key}")
+            ax.plot(*curve(history[key]), marker="x", linestyle=line, color="black",
+                    label=f"L-shape AFEM, {key}")
     ax.axhline(0.4, color="gray", linewidth=0.8, label="0.4 (acceptance)")
-    ax.set_xlabel("cycle")
+    ax.set_xlabel("cycle (0: the initial mesh)")
     ax.set_ylabel("smallest angle / initial smallest angle")
-    ax.set_ylim(0, 1)
+    ax.set_ylim(0, 1.05)
     ax.set_title("7T-QD, mesh = refine(mesh, marked=...) on Gmsh meshes")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1))  # beside the data
@@ -195,7 +203,13 @@ def main(argv=None) -> None:
     parser.add_argument("--cycles", type=int, default=12)
     parser.add_argument("--parts", default="afem,loops,history,bounds")
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--plot-only", type=Path, default=None, metavar="JSON",
+                        help="redraw the loops' figure from a results file, run nothing")
     args = parser.parse_args(argv)
+    if args.plot_only:
+        done = json.loads(args.plot_only.read_text())
+        plot_loops(done["loops"], done.get("history"), IMG / "adaptive_loops.png")
+        return
     parts = args.parts.split(",")
     IMG.mkdir(parents=True, exist_ok=True)
     result = {"date": datetime.date.today().isoformat(), "machine": platform.platform(),
