@@ -444,7 +444,7 @@ def test_file_urls_are_local_paths(tmp_path):
     before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
     with pytest.raises(ValueError, match="the target would overwrite the source"):
         refine_store(url, tmp_path / "m.zarr")
-    with pytest.raises(ValueError, match="the target would be inside the source store"):
+    with pytest.raises(ValueError, match="the target would be inside the source "):
         refine_store(tmp_path / "m.zarr", f"{url}/inner.zarr")
     (tmp_path / "link").symlink_to(tmp_path)  # through a link: replaced its source too
     with pytest.raises(ValueError, match="the target would overwrite the source"):
@@ -459,6 +459,43 @@ def test_file_urls_are_local_paths(tmp_path):
     for argv in (["convert", url, f"file://{tmp_path}/m.zarr/"],
                  ["refine", url, f"file://{tmp_path}/m.zarr", "--dask"]):
         assert main(argv) == 1  # refused before any work: no cluster starts
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+
+
+def test_an_input_inside_the_output_store_or_an_output_inside_an_input_store_is_refused(
+        tmp_path, monkeypatch, capsys):
+    """A store is replaced as a whole: ``convert out.zarr/in.zarr out.zarr`` and
+    ``refine_store`` of the same pair deleted their input, exit 0 (review); an output
+    written inside an input store changed the input. Each is refused before any work, for
+    stores and mesh files, in the CLI and the API, and nothing changes on disk."""
+    from qdrefine.distributed import refine_store
+
+    monkeypatch.chdir(tmp_path)
+    mesh = examples.square(2)
+    store.create("out.zarr", mesh)
+    store.create("out.zarr/in.zarr", mesh)
+    qdrefine.write("out.zarr/m.msh", mesh)
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    held = "is inside the output, which writing replaces as a whole"
+    inside = "the output would be inside the input"
+    for argv, message in ((["convert", "out.zarr/in.zarr", "out.zarr"], held),
+                          (["convert", "out.zarr/m.msh", "out.zarr"], held),
+                          (["convert", f"file://{tmp_path}/out.zarr/in.zarr",
+                            f"file://{tmp_path}/out.zarr"], held),
+                          (["refine", "out.zarr/in.zarr", "out.zarr", "--dask"], held),
+                          (["convert", "out.zarr", "out.zarr/sub.zarr"], inside),
+                          (["convert", "out.zarr", "out.zarr/x.msh"], inside),
+                          (["refine", "out.zarr", "out.zarr/x.msh"], inside)):
+        assert main(argv) == 1, argv
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1, (argv, err)
+    with pytest.raises(ValueError, match="the source .*in.zarr is inside the target"):
+        refine_store("out.zarr/in.zarr", "out.zarr")
+    with pytest.raises(ValueError, match=held):
+        store.from_file("out.zarr/m.msh", "out.zarr")
+    for name in ("y.msh", "y.vtu"):  # streamed, or through a mesh in memory
+        with pytest.raises(ValueError, match=inside):
+            store.to_file("out.zarr", f"out.zarr/{name}")
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
 
 

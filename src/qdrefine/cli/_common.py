@@ -260,6 +260,7 @@ def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
                          f"'{out.suffix}'")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{out}: directory {out.parent} does not exist")
+    check_url_output(str(out), inputs)  # a store inside the output, or the output inside one
     for i in inputs:
         shared = _files(i) & _files(path, read=False)
         if shared:
@@ -274,14 +275,14 @@ def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
 def check_url_output(path: str, inputs: tuple[str, ...] = ()) -> None:
     """For an output given as a URL (``file://`` included), what :func:`check_output` checks
     of a path that a URL can say: it is not one of the inputs, however spelled (links,
-    ``file://``, ``memory:///b`` against ``memory://b``)."""
-    from ..store.locations import canonical
+    ``file://``, ``memory:///b`` against ``memory://b``), not inside one (a store), and
+    holds none (a store is replaced as a whole: an input inside it would be deleted)."""
+    from ..store.locations import overlap
 
-    place = canonical(location(path))
     for i in inputs:
-        if place == canonical(location(i)):
-            raise ValueError(f"{path}: the output would overwrite the input; choose another "
-                             "name")
+        clash = overlap(location(path), i)
+        if clash:
+            raise ValueError(f"{path}: {clash}; choose another name")
 
 
 def save_figure(fig: Any, path: str | Path, dpi: int = 150) -> None:

@@ -23,7 +23,7 @@ from ..arguments import as_count
 from ..interrupts import sigterm_as_interrupt
 from ..io import WRITE_ERRNOS, cannot_write
 from ..schemes import Scheme, get_scheme
-from ..store.locations import canonical
+from ..store.locations import overlap
 from .cluster import (
     PAUSE_TIMEOUT,
     STALL_TIMEOUT,
@@ -140,12 +140,9 @@ def refine_store(source: mesh_store.PathLike, target: mesh_store.PathLike,
     levels = as_count(levels, "levels")
     src = mesh_store.open(source)
     url = mesh_store.location(target)
-    here, there = canonical(url), canonical(src.path)
-    if here == there:
-        raise ValueError(f"{url}: the target would overwrite the source; choose another path")
-    if here.startswith(there.rstrip("/") + "/"):
-        raise ValueError(f"{url}: the target would be inside the source store {src.path}; "
-                         "choose another path")
+    clash = overlap(url, src.path, ("target", "source"))
+    if clash:
+        raise ValueError(f"{url}: {clash}; choose another path")
     if src.n_points > MAX_POINTS:
         raise ValueError(f"{src.path}: {src.n_points} points; distributed refinement "
                          f"handles at most {MAX_POINTS} (int64 edge keys)")

@@ -30,7 +30,7 @@ from .layout import (
     written,
 )
 from .lifecycle import writing
-from .locations import PathLike, location
+from .locations import PathLike, location, overlap
 
 __all__ = ["create", "from_file", "to_file", "STREAMING_EXPORT", "rows"]
 
@@ -94,7 +94,11 @@ def spec_of(value: NDArray | None) -> tuple[tuple[int, ...], np.dtype] | None:
 
 def from_file(mesh_path: PathLike, path: PathLike, chunk_size: int = DEFAULT_CHUNK_SIZE,
               metadata: Mapping[str, Any] | None = None) -> MeshStore:
-    """Read any mesh file of :func:`qdrefine.read` (in memory) into a new store at ``path``."""
+    """Read any mesh file of :func:`qdrefine.read` (in memory) into a new store at ``path``
+    (not one that holds ``mesh_path``: writing replaces the store as a whole)."""
+    clash = overlap(location(path), mesh_path)
+    if clash:
+        raise ValueError(f"{location(path)}: {clash}; choose another path")
     mesh = read(mesh_path)
     meta = {"source": str(mesh_path), **dict(metadata or {})}
     return create(path, mesh, chunk_size, meta)
@@ -113,6 +117,9 @@ def to_file(store: MeshStore | PathLike, mesh_path: PathLike, *,
     Every other format loads the mesh (validated) and calls :func:`qdrefine.write`.
     """
     s = as_store(store)
+    clash = overlap(location(mesh_path), s.path)
+    if clash:
+        raise ValueError(f"{mesh_path}: {clash}; choose another path")
     mesh_path = Path(mesh_path)
     ext = mesh_path.suffix.lower()
     if format_version is not None and ext != ".msh":

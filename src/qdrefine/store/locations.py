@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["PathLike", "location", "is_local", "filesystem", "canonical", "join", "split"]
+__all__ = ["PathLike", "location", "is_local", "filesystem", "canonical", "overlap", "join",
+           "split"]
 
 PathLike = str | os.PathLike
 
@@ -66,6 +67,23 @@ def canonical(url: str) -> str:
     fs, root = filesystem(url)
     protocol = fs.protocol if isinstance(fs.protocol, str) else fs.protocol[0]
     return f"{protocol}://{root.rstrip('/')}"
+
+
+def overlap(target: str, source: str, words: tuple[str, str] = ("output", "input")
+            ) -> str | None:
+    """Why writing ``target`` (a URL from :func:`location`) would change ``source``: it is
+    the same place, inside it, or holds it (a store is replaced as a whole, so a source
+    inside the target would be deleted); None when they are apart. ``words``: what the
+    message calls the two."""
+    out, src = words
+    here, there = canonical(target), canonical(location(source))
+    if here == there:
+        return f"the {out} would overwrite the {src}"
+    if here.startswith(there.rstrip("/") + "/"):
+        return f"the {out} would be inside the {src} {source}"
+    if there.startswith(here.rstrip("/") + "/"):
+        return f"the {src} {source} is inside the {out}, which writing replaces as a whole"
+    return None
 
 
 def join(url: str, name: str) -> str:
