@@ -368,6 +368,21 @@ def test_temporaries_of_dead_runs_are_cleaned(tmp_path):
     for name in names:
         (tmp_path / name).mkdir()
         (tmp_path / name / "zarr.json").write_text("{}")
+    # older versions' names are theirs only when they hold what those versions left: a
+    # store, nothing, or (.work) .npy files; a user's folder of that name is kept (review:
+    # .m.zarr.backup_1.tmp was removed, .m.zarr.20240101.old renamed to m.zarr, with the
+    # user's notes inside)
+    (tmp_path / ".m.zarr.ab12cd34.tmp" / "zarr.json").unlink()
+    (tmp_path / ".m.zarr.ab12cd34.tmp").rmdir()
+    store.create(tmp_path / ".m.zarr.ab12cd34.tmp", examples.square(1))
+    (tmp_path / ".m.zarr.ab12cd34.work" / "zarr.json").rename(
+        tmp_path / ".m.zarr.ab12cd34.work" / "keys.npy")
+    (tmp_path / ".m.zarr.00000000.old").mkdir()  # empty
+    names[".m.zarr.00000000.old"] = True
+    for name in (".m.zarr.20240101.old", ".m.zarr.backup_1.tmp", ".m.zarr.ab12cd35.work"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "notes.txt").write_text("precious")
+        names[name] = False
     (tmp_path / ".m.zarr.ab12cd34.old").write_text("a user's file: only directories are ours")
     names[".m.zarr.ab12cd34.old"] = False
     removed = store.clean(tmp_path / "m.zarr")

@@ -130,14 +130,30 @@ def clean(path: PathLike, everything: bool = False) -> list[str]:
         owner = maker_of(entry, name)
         if owner is False or not fs.isdir(f"{root.rstrip('/')}/{entry}"):
             continue  # not ours: temporaries are directories (stores)
+        if owner is None and not _left_by_qdrefine(join(parent, entry)):
+            continue  # an old-style name, but a user's directory (.NAME.20240101.old)
         if everything or owner is None or not alive(*owner):
-            if entry.endswith(OLD) and is_local(url) and not os.path.exists(root_of(url)):
+            if entry.endswith(OLD) and is_local(url) and not os.path.exists(root_of(url)) \
+                    and is_store(join(parent, entry)):
                 # a run killed between its two renames: the target was this, put it back
                 os.rename(f"{root.rstrip('/')}/{entry}", root_of(url))
                 continue
             remove(join(parent, entry))
             removed.append(join(parent, entry))
     return removed
+
+
+def _left_by_qdrefine(url: str) -> bool:
+    """Whether the directory ``url``, named as older versions named their temporaries, holds
+    what they left: a mesh store (finished or not), nothing, or (``.work``) only the
+    ``.npy`` files of a run's intermediate data. Such names (``.NAME.`` and 8 characters)
+    are common enough for a user's own folders (``.mesh.zarr.20240101.old``) that the name
+    alone removed them (review)."""
+    if is_store(url, complete=False):
+        return True
+    fs, root = filesystem(url)
+    files = fs.find(root)
+    return not files or (url.endswith(".work") and all(f.endswith(".npy") for f in files))
 
 
 def root_of(url: str) -> str:
