@@ -578,9 +578,10 @@ def test_a_vtu_of_several_pieces_in_either_byte_order_reads_as_meshio_reads_it(
     """VTK writes a parallel or multi-block result as several pieces, and big-endian machines
     wrote big-endian files: both went to meshio, which keeps the triangles of the last piece
     only (its ``_organize_cells`` appends the blocks after its loop over the pieces), or
-    fails on the others' cell data: a silently wrong mesh or a refusal (review). Read here now, bounded: points joined in
-    order (as meshio joins them), each piece's triangles numbered on from the previous
-    pieces' points, its cell and point data joined the same way."""
+    fails on the others' cell data: a silently wrong mesh or a refusal (review). Read here
+    now, bounded: points joined in order (as meshio joins them), each piece's triangles
+    numbered on from the previous pieces' points, its cell and point data joined the same
+    way."""
     a, b = jittered_grid(3, seed=1), jittered_grid(2, seed=2)
     parts = [(a.points, a.triangles), (b.points + 5, b.triangles),
              (np.array([[9.0, 9], [10, 9], [9, 10]]), np.array([[0, 1, 2]]))]
