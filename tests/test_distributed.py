@@ -805,3 +805,85 @@ def _consolidate(path: Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         zarr.consolidate_metadata(path)
+
+
+def _grid(n: int = 4) -> tuple[np.ndarray, list[list[int]]]:
+    """An ``n x n`` grid of the unit square, two triangles per cell."""
+    xs = np.linspace(0, 1, n)
+    points = np.array([[x, y] for y in xs for x in xs])
+    triangles = []
+    for j in range(n - 1):
+        for i in range(n - 1):
+            a = j * n + i
+            triangles += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
+    return points, triangles
+
+
+@pytest.mark.parametrize("direct", [True, False])
+@pytest.mark.parametrize("case, message", [
+    # a duplicated interior triangle: every edge of it shared by 3, nothing on the boundary
+    ("duplicate", r"bad.zarr: edge \(5, 6\) is shared by 3 triangles; at most two"),
+    # a third triangle on an interior edge
+    ("stacked", r"bad.zarr: edge \(5, 6\) is shared by 3 triangles; at most two"),
+    # two triangles on one side of their only edge
+    ("fold", r"bad.zarr: the two triangles of edge \(0, 1\) lie on the same side of it: "
+             "they overlap"),
+    # a hanging node, an overlap: the boundary as given meets itself
+    ("hanging", r"bad.zarr: triangle 2 \(0, 2, 4\) has a boundary edge that meets another "
+                r"part of the mesh's boundary, before any refinement: the mesh overlaps "
+                "itself, has a hanging node"),
+])
+def test_a_mesh_that_is_not_valid_is_refused_and_named(tmp_path, client, monkeypatch, direct,
+                                                       case, message):
+    """The distributed path does not validate the mesh as a whole, as ``to_mesh`` does: a
+    duplicated interior triangle was refined into a store marked complete, and overused
+    edges, folds, hanging nodes and overlaps were refused as "closer to another part of
+    the mesh than float64 can resolve" (review). Edges of more than two half-edges, or of
+    two walking them the same way, are found while the edges are numbered (any chunk
+    size, shuffled or not); a boundary that meets itself before any refinement is named
+    as such."""
+    from qdrefine.distributed import level
+
+    if not direct:
+        monkeypatch.setattr(level, "DIRECT_PIECES", 0)
+    points, triangles = _grid()
+    if case == "duplicate":
+        triangles = triangles + [triangles[8]]
+    elif case == "stacked":
+        points = np.vstack([points, [[0.5, 0.45]]])
+        triangles = triangles + [[5, 6, 16]]
+    elif case == "fold":
+        points, triangles = [[0, 0], [1, 0], [0.5, 1], [0.5, 2]], [[0, 1, 2], [0, 1, 3]]
+    else:
+        points = [[0, 0], [1, 0], [2, 0], [1, -1], [2, 1]]
+        triangles = [[0, 3, 1], [1, 3, 2], [0, 2, 4]]
+    for chunk in (1, 5, 100):
+        bad = raw_store(tmp_path / "bad.zarr", points, triangles, chunk=chunk)
+        with pytest.raises(ValueError, match=message):
+            refine_store(bad, tmp_path / "out.zarr", client=client)
+        assert leftovers(tmp_path) == ["bad.zarr"]  # nothing left behind
+        __import__("shutil").rmtree(bad)
+
+
+def test_levels_0_copies_unsigned_indices_and_names_an_undecodable_chunk(tmp_path, client):
+    """``levels=0`` kept a uint64 source's triangles as uint64, whose fill value -1 did not
+    fit (an OverflowError traceback), and read chunks through Dask's own reader, so a
+    truncated chunk was the codec's RuntimeError traceback (review). Indices are copied
+    as the signed integers a refined level writes; every chunk is read as ``to_mesh``
+    reads it."""
+    mesh = examples.plate_with_hole()
+    path = tmp_path / "u.zarr"
+    store.create(path, mesh, chunk_size=100)
+    group = zarr.open_group(path, mode="r+", use_consolidated=False)
+    del group["triangles"]
+    group.create_array("triangles", data=mesh.triangles.astype(np.uint64), chunks=(100, 3))
+    _consolidate(path)
+    refine_store(path, tmp_path / "out.zarr", levels=0, client=client)
+    out = store.to_mesh(tmp_path / "out.zarr")
+    assert np.array_equal(out.triangles, mesh.triangles) and out.triangles.dtype.kind == "i"
+    chunk = tmp_path / "u.zarr" / "points" / "c" / "1" / "0"
+    chunk.write_bytes(chunk.read_bytes()[:10])
+    with pytest.raises(ValueError, match=r"u.zarr: array 'points' rows 100..199 cannot be "
+                                         r"read .*: the store is damaged"):
+        refine_store(path, tmp_path / "again.zarr", levels=0, client=client)
+    assert not (tmp_path / "again.zarr").exists()

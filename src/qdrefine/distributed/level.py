@@ -35,8 +35,10 @@ or in Zarr arrays under the run's temporary store, never in local files. The sta
    :func:`qdrefine.refine.split_tagged_edges`. The points (old points, then the new points
    of the partitions in key order) are written by one task per points chunk.
 4. **boundary check**: stage 2 also sends each distinct edge's *lone code* (the chunk's
-   only half-edge of it, or -1), so each partition knows its edges of one half-edge in
-   the mesh; the client sweeps them, as in memory (:meth:`Level._check_boundary`).
+   only half-edge of it, or how many it holds), so each partition knows its edges of one
+   half-edge in the mesh, and those of more than two or of two walking them the same way
+   (refused: :func:`_misused`); the client sweeps the boundary, as in memory
+   (:meth:`Level._check_boundary`).
 
 Up to :data:`DIRECT_PIECES` pieces, the pieces go from task to task as NumPy arrays instead
 of through a shuffle, with one edge partition per :data:`EDGE_GROUP` triangle chunks (one
@@ -188,6 +190,9 @@ class Level:
         #: The refusal of a point below the coordinate range, raised by the run once every
         #: level is done (in memory: after the last level), None if there is none.
         self.below_range: ValueError | None = None
+        #: The refusal of an edge of more than two triangles, or of two on one side of it
+        #: (:func:`_misused`), raised after the emission's clockwise triangles, as in memory.
+        self.misused: ValueError | None = None
         job.coords = _coords_array(coords, job.m, job.chunk, not coords_ready)
         if next_coords is not None:
             job.next_coords = _coords_array(next_coords, job.m * job.children, job.chunk, True)
@@ -315,14 +320,23 @@ class Level:
         return numbered, self._counts(numbered, futures)
 
     def _counts(self, numbered: list, kept: list) -> NDArray[np.int64]:
-        """The partitions' numbers of edges; the ``kept`` futures are released if this
-        fails (e.g. on Ctrl-C), as :meth:`run` does once they have served."""
+        """The partitions' numbers of edges (and :attr:`misused`); the ``kept`` futures are
+        released if this fails (e.g. on Ctrl-C), as :meth:`run` does once they have
+        served."""
         try:
-            counts = self.client.gather(self.client.map(_count, numbered, pure=False))
+            results = self.client.gather(self.client.map(_count, numbered, pure=False))
         except BaseException:
             _release(kept)
             raise
-        return np.asarray(counts, dtype=np.int64)
+        misused = [m for _, m in results if m is not None]
+        if misused:  # the smallest key: the same edge whatever the partitions
+            key, total = min(misused)
+            edge = (key // self.job.n, key % self.job.n)
+            self.misused = ValueError(
+                f"{self.job.path}: edge {edge} is shared by {total} triangles; at most two "
+                "may share an edge" if total > 2 else f"{self.job.path}: the two triangles "
+                f"of edge {edge} lie on the same side of it: they overlap")
+        return np.asarray([count for count, _ in results], dtype=np.int64)
 
     def _emit(self, numbered: list, counts: NDArray[np.int64]) -> None:
         """Stage 3: triangles, cell tags, tagged edges and points of the output store."""
@@ -354,9 +368,15 @@ class Level:
         # (its row stays the same in the later levels' points)
         refusals = [r for r in self._compute(tasks + self._points_tasks(numbered, counts,
                                                                          offsets)) if r]
-        now = [r for r in refusals if r[0] < 2]
+        # as in memory: a clockwise triangle, then an edge of more than two triangles or of
+        # two on one side of it (the input's validation), then a too thin one
+        now = sorted((r for r in refusals if r[0] < 2), key=lambda r: r[:2])
+        if now and now[0][0] == 0:
+            raise now[0][2]
+        if self.misused is not None:
+            raise self.misused
         if now:
-            raise min(now, key=lambda r: r[:2])[2]
+            raise now[0][2]
         if refusals:
             self.below_range = min(refusals, key=lambda r: r[1])[2]
 
@@ -370,10 +390,11 @@ class Level:
         job = self.job
         parts = self.client.gather(self.client.map(_boundary_of, numbered, pure=False))
         offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-        row = _crossing_row(parts, offsets, job.n, job.k)
-        if row is not None:
+        found = _crossing_row(parts, offsets, job.n, job.k)
+        if found is not None:
+            row, as_given = found
             raise _refused(job, row, _triangles(job, row, row + 1)[0],
-                           too_close_reason(job.coords[row]))
+                           _INVALID_BOUNDARY if as_given else too_close_reason(job.coords[row]))
 
     def _points_tasks(self, numbered: list, counts: NDArray[np.int64],
                       offsets: NDArray[np.int64]) -> list:
@@ -430,24 +451,47 @@ class Level:
 def copy_store(client: Client, src: mesh_store.MeshStore, out: str, metadata: dict[str, Any],
                timeouts: dict[str, float]) -> None:
     """``levels = 0``: the source's arrays into ``out``, chunk by chunk (``node_x`` and
-    ``node_y`` from the source's ``points``: a source written before them has none)."""
+    ``node_y`` from the source's ``points``: a source written before them has none), each
+    block checked as every read checks it (:func:`qdrefine.store.layout.written`), not
+    validated as a mesh."""
     import dask.array as da
     import zarr
 
     group = zarr.open_group(src.path, mode="r")
     names = [n for n in mesh_store.ARRAYS if n in group]
-    # tags as int64, as a refined level writes them (their fill value is int64's smallest)
-    dtypes = {n: np.dtype(np.int64) if n.endswith("tags") else group[n].dtype for n in names}
+    # tags as int64 and indices as signed integers, as a refined level writes them (their
+    # fill values, int64's smallest and -1, must fit: a uint64 source's did not)
+    dtypes = {n: np.dtype(np.int64) if n.endswith("tags") else
+              np.dtype(index_dtype(src.n_points)) if n in ("triangles", "edges") else
+              group[n].dtype for n in names}
     specs = {n: (group[n].shape, dtypes[n]) for n in names}
     target = mesh_store.new_group(out, specs, {n: int(group[n].chunks[0]) for n in names},
                                   metadata)
     # checked as they are copied: the copy of a damaged store must not be marked complete
-    sources = {n: da.from_zarr(group[n]).map_blocks(_checked_block, src.path, src.n_points, n,
-                                                   dtypes[n], dtype=dtypes[n])
+    sources = {n: da.from_array(_Rows(src.path, group[n], n), chunks=group[n].chunks,
+                                asarray=False)
+               .map_blocks(_checked_block, src.path, src.n_points, n, dtypes[n],
+                           dtype=dtypes[n])
                for n in names}
     sources |= mesh_store.node_coordinates(sources["points"])
     cluster.compute(client, [da.store(list(sources.values()), [target[n] for n in sources],
                                       lock=False, compute=False)], **timeouts)
+
+
+class _Rows:
+    """A stored array as Dask reads it, each slice through
+    :func:`qdrefine.store.layout.read_rows` (a chunk that cannot be decoded is one line
+    naming the store, the array and the rows, not the codec's traceback)."""
+
+    def __init__(self, path: str, array, name: str) -> None:
+        self.path, self.array, self.name = path, array, name
+        self.shape, self.dtype, self.ndim = array.shape, array.dtype, array.ndim
+
+    def __getitem__(self, index: tuple) -> NDArray:
+        rows = index[0] if isinstance(index, tuple) else index
+        start, stop, _ = rows.indices(self.shape[0])
+        block = mesh_store.read_rows(self.path, self.array, self.name, start, stop)
+        return block[(slice(None), *index[1:])] if isinstance(index, tuple) else block
 
 
 def _checked_block(block: NDArray, path: str, n_points: int, name: str, dtype: np.dtype,
@@ -566,17 +610,20 @@ def _distinct_edges(job: _Job, a: int, b: int, inverse: bool = False
     index of each half-edge ``(v_i, v_{i+1})`` among the keys ``(3 (b - a),)`` (int32
     while it fits), and the edges' *lone* codes ``(u,)``: ``2 h + w`` for an edge of one
     half-edge ``h = 3 t + i`` here (``w`` = 1 where its triangle walks it from its larger
-    vertex), -1 for an edge of two (for the boundary check, :func:`_lone_edges`)."""
+    vertex; for the boundary check, :func:`_lone_edges`), ``-(2 c + f)`` for an edge of
+    ``c >= 2`` half-edges here, ``f`` = 1 unless they are two that walk it both ways (for
+    :func:`_misused`)."""
     t = _triangles(job, a, b)
     xy = job.coords[a:b]
     if np.isnan(xy).any():  # unwritten chunk: a bug, never a wrong result
         raise RuntimeError(f"qdrefine internal error: corner coordinates of triangles "
                            f"{a}..{b - 1} are missing")
     key, from_larger = _half_edges(t, job.n)
-    keys, one, back, count = distinct_counted(key.ravel(), inverse=inverse)
-    if back is not None:
-        back = back.astype(index_dtype(len(keys)))
-    lone = np.where(count == 1, 2 * (3 * a + one) + from_larger.ravel()[one], -1)
+    keys, one, back, count = distinct_counted(key.ravel())
+    larger = np.bincount(back, weights=from_larger.ravel(), minlength=len(keys))
+    lone = np.where(count == 1, 2 * (3 * a + one) + from_larger.ravel()[one],
+                    -(2 * count + (2 * larger != count)))
+    back = back.astype(index_dtype(len(keys))) if inverse else None
     return keys, edge_ends(t, xy, one), back, lone.astype(np.int64)
 
 
@@ -624,11 +671,12 @@ def _tagged_pieces(rows: tuple[int, int], job: _Job, cuts: NDArray[np.int64]) ->
 
 
 def _number_pieces(pieces: list[tuple], job: _Job
-                   ) -> tuple[int, NDArray[np.float64], list[NDArray[np.int64]], tuple]:
+                   ) -> tuple[int, NDArray[np.float64], list[NDArray[np.int64]], tuple,
+                              tuple[int, int] | None]:
     """Edge partition from the pieces of every triangle chunk, then every tagged edge
     chunk: its number of distinct edges, their new points, for every source the local ids
-    of the keys it sent, in its order (-1: a tagged edge of no triangle), and its boundary
-    edges (:func:`_lone_edges`)."""
+    of the keys it sent, in its order (-1: a tagged edge of no triangle), its boundary
+    edges (:func:`_lone_edges`) and its first misused edge (:func:`_misused`)."""
     tri = [pc for pc in pieces if pc[1] is not None]  # the triangle chunks' come first
     keys = np.concatenate([k for k, _, _ in tri]) if tri else np.empty(0, dtype=np.int64)
     sizes = np.array([len(k) for k, _, _ in tri], dtype=np.int64)
@@ -649,12 +697,36 @@ def _number_pieces(pieces: list[tuple], job: _Job
     ends = np.concatenate([e[m] for (_, e, _), m in zip(tri, masks, strict=True)]
                           or [np.empty((0, 4))])
     boundary = _lone_edges(codes[alone], unique, inverse[alone], ends, points, job.k)
+    misused = _misused(unique, inverse, codes)
     for k, _, _ in pieces[len(tri):]:  # tagged edges: -1 where no triangle has the edge
         lid = np.searchsorted(unique, k)
         found = lid < len(unique)
         found[found] = unique[lid[found]] == k[found]
         lids.append(np.where(found, lid, -1).astype(ids))
-    return len(unique), points, lids, boundary
+    return len(unique), points, lids, boundary, misused
+
+
+def _misused(keys: NDArray[np.int64], inverse: NDArray, codes: NDArray[np.int64]
+             ) -> tuple[int, int] | None:
+    """The first of an edge partition's sorted distinct ``keys`` that more than two
+    half-edges use, or two that walk it the same way (their triangles overlap), as ``(key,
+    half-edges)``; None if there is none. ``inverse``: each row's key; ``codes``: each
+    row's lone code (:func:`_distinct_edges`; a duplicated triangle made such edges, and
+    the refined store was marked complete)."""
+    if not len(keys):
+        return None
+    lone = codes >= 0
+    halves = np.where(lone, 1, -codes // 2)
+    total = np.bincount(inverse, weights=halves, minlength=len(keys))
+    bad = total > 2
+    bad[inverse[~lone & (-codes % 2 == 1)]] = True
+    # two lone half-edges (of two chunks) walking the edge the same way
+    walked = np.bincount(inverse[lone], weights=codes[lone] & 1, minlength=len(keys))
+    bad |= (np.bincount(inverse[lone], minlength=len(keys)) == 2) & (walked != 1)
+    if not bad.any():
+        return None
+    i = int(np.argmax(bad))
+    return int(keys[i]), int(total[i])
 
 
 def _lone_edges(lone: NDArray, keys: NDArray[np.int64], lids: NDArray,
@@ -674,16 +746,18 @@ def _lids_for(result: tuple, j: int) -> NDArray[np.int64]:
 
 
 def _number_edges(part: pd.DataFrame, job: _Job, p: int
-                  ) -> tuple[int, NDArray[np.float64], pd.DataFrame, tuple]:
+                  ) -> tuple[int, NDArray[np.float64], pd.DataFrame, tuple,
+                             tuple[int, int] | None]:
     """Edge partition ``p`` (a range of keys, sorted): its number of distinct edges, their
     new points ``(u_p k, 2)``, the rows ``(j, key, p, local id)`` to send back (local id
-    -1: a tagged edge of no triangle) and its boundary edges (:func:`_lone_edges`)."""
+    -1: a tagged edge of no triangle), its boundary edges (:func:`_lone_edges`) and its
+    first misused edge (:func:`_misused`)."""
     import pandas as pd
 
     key = part.index.to_numpy(dtype=np.int64)
     j = part["j"].to_numpy(dtype=np.int64)
     tri = j < job.n_chunks
-    keys, first, _, rows_per_edge = distinct_counted(key[tri], inverse=False)
+    keys, first, inverse, rows_per_edge = distinct_counted(key[tri])
     lid = np.searchsorted(keys, key)
     found = lid < len(keys)
     found[found] = keys[lid[found]] == key[found]
@@ -692,18 +766,30 @@ def _number_edges(part: pd.DataFrame, job: _Job, p: int
     back = pd.DataFrame({"j": j, "key": key, "p": np.full(len(key), p, dtype=np.int64),
                          "lid": lid.astype(np.int64)})
     points = new_points(ends, job.k)
-    lone = part["lone"].to_numpy(dtype=np.int64)[tri][first]
+    codes = part["lone"].to_numpy(dtype=np.int64)[tri]
+    lone = codes[first]
     on_boundary = np.flatnonzero((rows_per_edge == 1) & (lone >= 0))
     return len(keys), points, back, _lone_edges(lone[on_boundary], keys, on_boundary,
-                                                ends[on_boundary], points, job.k)
+                                                ends[on_boundary], points, job.k), \
+        _misused(keys, inverse, codes)
+
+
+#: Why a triangle is refused whose boundary edge, as given, meets another part of the
+#: boundary (the in-memory path refuses such meshes when it validates them, with the reason).
+_INVALID_BOUNDARY = ("has a boundary edge that meets another part of the mesh's boundary, "
+                     "before any refinement: the mesh overlaps itself, has a hanging node or "
+                     "two points at one place there ('qdrefine convert STORE x.msh' and "
+                     "'qdrefine check x.msh' name which)")
 
 
 def _crossing_row(parts: list[tuple], offsets: NDArray[np.int64], n: int, k: int
-                  ) -> int | None:
+                  ) -> tuple[int, bool] | None:
     """The row of the triangle refused by :func:`qdrefine.boundaries.first_bad_edge` on
     the boundary edges of the partitions ``parts`` (:func:`_lone_edges`, with ``offsets``,
     their first global edge ids) taken in the order of the triangles' half-edges, as in
-    memory; None where the refined boundary is sound."""
+    memory, and whether the boundary as given (without the new points) is refused already
+    (then the row is that of its first refused edge: a mesh that is not valid, which this
+    path does not validate as a whole); None where the refined boundary is sound."""
     if not parts:
         return None
     lone, keys, lids, ends, new = (np.concatenate(x) for x in zip(*parts, strict=True))
@@ -721,11 +807,20 @@ def _crossing_row(parts: list[tuple], offsets: NDArray[np.int64], n: int, k: int
     unique, first = np.unique(ids, return_index=True)
     bad = first_bad_edge(xy[first], np.searchsorted(unique, pieces),
                          int(np.searchsorted(unique, n)))
-    return None if bad is None else int(lone[bad // (k + 1)] >> 1) // 3
+    if bad is None:
+        return None
+    old = np.concatenate([lo, hi])
+    unique, first = np.unique(old, return_index=True)
+    given = first_bad_edge(np.concatenate([ends[:, 0], ends[:, 1]])[first],
+                           np.searchsorted(unique, walked), len(unique))
+    if given is not None:
+        return int(lone[given] >> 1) // 3, True
+    return int(lone[bad // (k + 1)] >> 1) // 3, False
 
 
-def _count(result: tuple) -> int:
-    return int(result[0])
+def _count(result: tuple) -> tuple[int, tuple[int, int] | None]:
+    """A partition's number of edges and its first misused edge (:func:`_misused`)."""
+    return int(result[0]), result[4]
 
 
 def _new_points_rows(result: tuple, lo: int, hi: int) -> NDArray[np.float64]:
