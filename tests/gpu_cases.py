@@ -232,6 +232,12 @@ def test_bad_input_is_refused_with_one_line():
         (lambda: refine_device(mesh.points, mesh.triangles, cell_tags=[1.7, 2.2]),
          "cell_tags must hold integers"),
         (lambda: refine_device(mesh.points.astype(bool), mesh.triangles), "must be numbers"),
+        # masks were dropped: the masked rows were refined (review)
+        (lambda: refine_device(np.ma.masked_array(mesh.points, mask=mesh.points > 0.5),
+                               mesh.triangles), "points has masked entries"),
+        (lambda: refine_device(mesh.points, np.ma.masked_array(mesh.triangles,
+                                                               mask=[[0, 0, 0], [1, 1, 1]])),
+         "triangles has masked entries"),
         (lambda: refine(mesh, device="tpu"), "unknown device"),
         (lambda: refine(mesh, marked=[0], device="cuda"), "CPU only"),
     ]

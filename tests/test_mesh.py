@@ -57,6 +57,10 @@ def test_valid_mesh_is_read_only_and_normalized():
         ({"points": SQUARE.astype(bool)}, "points must be numbers, got dtype bool"),
         ({"triangles": np.ma.array(TRIS, mask=[[0, 0, 0], [1, 1, 1]])},
          "triangles has masked entries"),
+        ({"points": np.ma.array(SQUARE, mask=SQUARE == 1)}, "points has masked entries"),
+        # an OverflowError before (review)
+        ({"points": [[0, 0], [10**400, 0], [1, 1], [0, 1]]}, r"points must be numbers of shape "
+                                                            r"\(N, 2\) \(int too large"),
     ],
 )
 def test_bad_input_names_the_problem(kwargs, message):

@@ -217,3 +217,23 @@ def test_unknown_scheme_lists_the_choices():
 def test_degenerate_triangle_is_refused():
     with pytest.raises(ValueError, match="zero area"):
         partition([[0, 0], [1, 1], [2, 2]])
+
+
+@pytest.mark.parametrize("vertices, message", [
+    (np.ma.masked_array([[0.0, 0], [1, 0], [5, 5]], mask=[[0, 0], [0, 0], [1, 1]]),
+     "vertices has masked entries"),
+    ([["0", "0"], ["1", "0"], ["0", "1"]], "vertices must be numbers, got dtype <U1"),
+    ([[False, False], [True, False], [False, True]], "vertices must be numbers, got dtype bool"),
+    ([[0, 0], [10**400, 0], [0, 1]], r"vertices must be numbers of shape \(3, 2\) \(int too "
+                                     "large to convert to float\\)"),
+    ([[0, 0], [1, 0], [0, 1j]], "vertices must be real numbers, got dtype complex128"),
+])
+def test_vertices_mesh_would_refuse_are_refused(vertices, message):
+    """``partition`` used a masked vertex, took strings and booleans as coordinates, and
+    raised OverflowError for 10**400, where ``Mesh`` refuses all of them (review): one
+    conversion, :func:`qdrefine.arguments.as_coordinates`, for both."""
+    with pytest.raises(ValueError, match=message):
+        partition(vertices)
+    many = np.ma.stack([vertices]) if isinstance(vertices, np.ma.MaskedArray) else [vertices]
+    with pytest.raises(ValueError, match=message.replace(r"\(3, 2\)", r"\(K, 3, 2\)")):
+        partition_many(many)

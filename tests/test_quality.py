@@ -112,6 +112,12 @@ def test_min_angle_histogram_counts_every_triangle():
     assert quality.min_angle_histogram(p, t)[0][-1] == 1
     with pytest.raises(ValueError, match="bin_width"):
         quality.min_angle_histogram(m, bin_width=0)
+    for width in (1e-8, 1e-300, float("nan")):  # 1e-8 asked for 45 GiB (review)
+        with pytest.raises(ValueError, match=r"bin_width must be in \[6e-05, 60\] degrees "
+                                             r"\(at most 1000000 bins\)"):
+            quality.min_angle_histogram(m, bin_width=width)
+    assert len(quality.min_angle_histogram(m, bin_width=60 / quality.MAX_BINS)[0]) == \
+        quality.MAX_BINS
 
 
 def test_similarity_classes_are_not_split_by_rounding_noise():

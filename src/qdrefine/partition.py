@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .arguments import as_coordinates
 from .predicates import check_coordinates, orient_signs
 from .schemes import Scheme, get_scheme
 from .uniform import refine_arrays
@@ -40,7 +41,8 @@ def partition(vertices: ArrayLike, scheme: str | Scheme = "7t-qd", *, strict: bo
     >>> pts.shape, tris.shape
     ((9, 2), (7, 3))
     """
-    pts, tris = partition_many(np.asarray(vertices)[None], scheme, strict=strict)
+    v = as_coordinates(vertices, "vertices", "(3, 2)")
+    pts, tris = partition_many(v[None], scheme, strict=strict)
     return pts[0], tris[0]
 
 
@@ -63,10 +65,7 @@ def partition_many(vertices: ArrayLike, scheme: str | Scheme = "7t-qd", *, stric
         Local indices, as for :func:`partition`.
     """
     sch = get_scheme(scheme)
-    given = np.asarray(vertices)
-    if given.dtype.kind == "c":  # the cast would drop the imaginary parts
-        raise ValueError(f"vertices must be real numbers, got dtype {given.dtype}")
-    v = np.asarray(given, dtype=np.float64)
+    v = as_coordinates(vertices, "vertices", "(K, 3, 2)")
     if v.ndim != 3 or v.shape[1:] != (3, 2):
         raise ValueError(f"vertices must have shape (K, 3, 2), got {v.shape}")
     check_coordinates(v.reshape(-1, 2), "vertex")

@@ -238,15 +238,21 @@ def _touching_cells(cells: NDArray[np.int64]) -> NDArray[np.int64]:
     return labels
 
 
+#: The most bins :func:`min_angle_histogram` makes.
+MAX_BINS = 1_000_000
+
+
 def min_angle_histogram(
     mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None, *, bin_width: float = 2.5,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Counts of per-triangle minimum angles in bins of ``bin_width`` degrees over ``[0, 60]``.
+    """Counts of per-triangle minimum angles in bins of ``bin_width`` degrees over ``[0, 60]``
+    (at most :data:`MAX_BINS` bins).
 
     Returns ``counts (B,)`` and ``edges (B+1,)`` as :func:`numpy.histogram` does.
     """
-    if not 0 < bin_width <= 60:
-        raise ValueError(f"bin_width must be in (0, 60] degrees, got {bin_width!r}")
+    if not 60 / MAX_BINS <= bin_width <= 60:  # NaN included; 1e-8 asked for 45 GiB
+        raise ValueError(f"bin_width must be in [{60 / MAX_BINS:g}, 60] degrees (at most "
+                         f"{MAX_BINS} bins), got {bin_width!r}")
     n = int(np.ceil(60.0 / bin_width - 1e-9))
     edges = np.linspace(0.0, n * bin_width, n + 1)
     values = np.clip(min_angles(mesh, triangles), 0.0, edges[-1])  # 60 + rounding counts

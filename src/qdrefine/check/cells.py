@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
+from ..arguments import as_coordinates, refuse_masked
 from ..jit import threads_for
 from ..numbering import edge_ids
 from ..predicates import COORDINATE_RANGE, orient_signs
@@ -22,21 +23,9 @@ __all__ = ["points", "triangles", "in_range", "coordinates", "misoriented", "ori
 
 def points(found: Findings, points: ArrayLike) -> NDArray | None:
     try:
-        if _masked(points):  # np.asarray drops the mask
-            found.add("points", "points has masked entries; give a plain array")
-            return None
-        given = np.asarray(points)
-        if given.dtype.kind == "c":  # the cast would drop the imaginary parts
-            found.add("points", f"points must be real numbers, got dtype {given.dtype}")
-            return None
-        if given.size and (given.dtype.kind in "bUSV" or (given.dtype.kind == "O" and any(
-                isinstance(x, str | bytes | bool | np.bool_) for x in given.flat))):
-            # "1.5" and True were taken as coordinates
-            found.add("points", f"points must be numbers, got dtype {given.dtype}")
-            return None
-        p = np.array(given, dtype=np.float64, copy=True)
-    except (TypeError, ValueError) as exc:
-        found.add("points", f"points must be an (N, 2) array of numbers ({exc})")
+        p = as_coordinates(points, "points")
+    except ValueError as exc:
+        found.add("points", str(exc))
         return None
     if p.ndim != 2 or p.shape[1] != 2:
         found.add("points", f"points must have shape (N, 2), got {p.shape}")
@@ -44,14 +33,11 @@ def points(found: Findings, points: ArrayLike) -> NDArray | None:
     return p
 
 
-def _masked(value: ArrayLike) -> bool:
-    return isinstance(value, np.ma.MaskedArray) and bool(np.ma.getmaskarray(value).any())
-
-
 def triangles(found: Findings, triangles: ArrayLike) -> NDArray | None:
-    if _masked(triangles):  # np.asarray drops the mask: masked triangles would be kept
-        found.add("triangles", "triangles has masked entries; give a plain array of the "
-                  "triangles to keep")
+    try:  # np.asarray drops the mask: masked triangles would be kept
+        refuse_masked(triangles, "triangles", "give a plain array of the triangles to keep")
+    except ValueError as exc:
+        found.add("triangles", str(exc))
         return None
     try:
         t = np.asarray(triangles)

@@ -8,6 +8,7 @@ import numpy as np
 from numba import cuda
 from numpy.typing import NDArray
 
+from ..arguments import refuse_masked
 from .checks import cast_host
 
 __all__ = ["as_device", "to_host"]
@@ -28,6 +29,7 @@ def as_device(a, name: str, dtypes: tuple, columns: int | None):
                              "(pip install 'qdrefine[gpu]')") from None
         d = cuda.as_cuda_array(cupy.from_dlpack(a))
     else:
+        refuse_masked(a, name)  # np.asarray drops the mask: the masked rows were refined
         host = np.asarray(a)
         if host.dtype not in dtypes and host.size:
             host = cast_host(host, name, np.dtype(dtypes[0]).kind == "f")
