@@ -472,9 +472,38 @@ def test_a_closed_pipe_is_not_an_error():  # `qdrefine info x.msh | head -1`
     assert result.returncode == 0 and result.stderr == ""
 
 
-def test_a_closed_standard_output_is_not_an_error():  # `qdrefine info x.msh >&-`
+def test_a_report_to_a_closed_standard_output_is_an_error(tmp_path):
+    """``qdrefine info x.msh >&-`` printed nothing and exited 0, where ``cat`` and ``ls``
+    fail (review): the report is lost. A command that prints nothing runs as usual, and
+    with standard error closed a command runs (it failed silently: its progress display
+    asked the missing stream whether it is a terminal) and its report stays clean (its
+    warnings went into the JSON)."""
     result = _info_with_stdout(None, closed=True)
-    assert result.returncode == 0 and result.stderr == ""
+    assert result.returncode == 1
+    assert result.stderr == "qdrefine: error: [Errno 9] Bad file descriptor: 'standard output'\n"
+    mesh = tmp_path / "m.msh"
+    qdrefine.write(mesh, examples.square(2))
+
+    def shell(line: str) -> subprocess.CompletedProcess:
+        return subprocess.run(["sh", "-c", line, "sh", sys.executable, str(mesh), str(tmp_path)],
+                              capture_output=True, text=True, timeout=300)
+
+    quiet = shell('exec "$1" -m qdrefine refine "$2" "$3/q.msh" -q >&-')
+    assert quiet.returncode == 0 and (tmp_path / "q.msh").exists()
+    silent = shell('exec "$1" -m qdrefine refine "$2" "$3/s.msh" 2>&-')
+    assert silent.returncode == 0 and (tmp_path / "s.msh").exists()
+    assert silent.stdout.startswith(f"{tmp_path / 's.msh'}: 56 triangles")
+    clockwise = tmp_path / "cw.msh"  # read with a warning: the triangle is flipped
+    clockwise.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n"
+                         "2 1 0 0\n3 0 1 0\n$EndNodes\n$Elements\n1\n1 2 2 1 1 1 3 2\n"
+                         "$EndElements\n")
+    warned = subprocess.run([sys.executable, "-m", "qdrefine", "info", str(clockwise),
+                             "--json"], capture_output=True, text=True, timeout=300)
+    assert "qdrefine: warning:" in warned.stderr  # what would have gone into the JSON
+    report = subprocess.run(["sh", "-c", 'exec "$@" 2>&-', "sh", sys.executable, "-m",
+                             "qdrefine", "info", str(clockwise), "--json"],
+                            capture_output=True, text=True, timeout=300)
+    assert report.returncode == 0 and json.loads(report.stdout)["triangles"] == 1
 
 
 def test_reports_say_what_was_done(tmp_path, run):
@@ -522,3 +551,16 @@ def test_the_guide_lists_every_option_of_every_command():
             long = [o for o in action.option_strings if o.startswith("--")]
             if long and long[0] not in ("--help", "--quiet"):
                 assert long[0] in rows, f"{name} {long[0]} is not in the guide's table"
+
+
+def test_ctrl_c_while_the_commands_load_is_one_line(monkeypatch, capsys):
+    """Ctrl-C while ``main`` imported the commands' modules printed a KeyboardInterrupt
+    traceback (review; the guide says one line at any moment)."""
+    import importlib
+
+    def interrupted(name, *args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(importlib, "import_module", interrupted)
+    assert main(["info", "x.msh"]) == 130
+    assert capsys.readouterr().err == "qdrefine: interrupted\n"

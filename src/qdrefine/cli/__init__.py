@@ -14,14 +14,19 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import importlib
 import os
 import sys
 from typing import Any, TextIO
 
-from ..interrupts import TERMINATED, sigterm_as_interrupt
-from ..jit import compile_note
-from . import _common
+try:
+    from ..interrupts import TERMINATED, sigterm_as_interrupt
+    from ..jit import compile_note
+    from . import _common
+except KeyboardInterrupt:  # Ctrl-C while a command starts: one line, as main says it
+    print("qdrefine: interrupted", file=sys.stderr)
+    raise SystemExit(130) from None
 
 __all__ = ["main", "COMMANDS"]
 
@@ -61,7 +66,13 @@ COMPILING = ("qdrefine: note: compiling the numerical kernels for this machine (
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
-    parser = _parser()
+    if sys.stderr is None:  # '2>&-': messages have nowhere to go (print would use stdout)
+        sys.stderr = open(os.devnull, "w")  # noqa: SIM115 (for the rest of the process)
+    try:
+        parser = _parser()  # imports every command: Ctrl-C here is one line too
+    except KeyboardInterrupt:
+        print("qdrefine: interrupted", file=sys.stderr)
+        return 130
     args, extra = parser.parse_known_args(
         _joined_negative_values(sys.argv[1:] if argv is None else argv))
     if extra:  # said by the command's parser: one line, with its --help
@@ -72,12 +83,13 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     _refuse_empty_values(args)
     try:
-        named = contextlib.nullcontext() if sys.stdout is None else \
-            contextlib.redirect_stdout(_NamedStream(sys.stdout, "standard output"))  # '>&-'
+        # '>&-': a report fails as '> /dev/full' does, naming standard output (it was lost,
+        # exit 0); a command that prints nothing (-q) runs as usual
+        named = contextlib.redirect_stdout(_NamedStream(
+            _Closed() if sys.stdout is None else sys.stdout, "standard output"))
         with sigterm_as_interrupt(), compile_note(COMPILING), named:
             code = int(args.handler(args))  # a kill cleans up as Ctrl-C
-            if sys.stdout is not None:
-                sys.stdout.flush()  # a full disk behind '>' is said here, not at exit
+            sys.stdout.flush()  # a full disk behind '>' is said here, not at exit
             return code
     except BrokenPipeError:  # e.g. `qdrefine info x.msh | head`: not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -115,6 +127,22 @@ def _refuse_empty_values(args: argparse.Namespace) -> None:
 def _version() -> str:
     from .. import __version__
     return __version__
+
+
+class _Closed:
+    """Standard output closed by the shell (``>&-``): every write fails as ``write(2)``
+    on a closed descriptor does."""
+
+    def write(self, text: str) -> int:
+        if not text:
+            return 0
+        raise OSError(errno.EBADF, os.strerror(errno.EBADF))
+
+    def flush(self) -> None:
+        pass
+
+    def isatty(self) -> bool:
+        return False
 
 
 class _NamedStream:
