@@ -640,3 +640,35 @@ def test_a_compressed_block_of_a_later_piece_is_bounded_and_named(tmp_path):
     with pytest.raises(ValueError, match=r"names\.vtu: .*Piece 1 has point data \['u'\], "
                                          r"Piece 0 \['v'\]"):
         qdrefine.read(tmp_path / "names.vtu")
+
+
+def test_gmsh_physical_points_are_dropped_with_a_warning(tmp_path):
+    """A physical point (a pin, a load point) was dropped silently, its name kept without
+    an element (review): dropped with one warning now, in every version Gmsh writes; the
+    triangles, tags and tagged lines read as without it."""
+    with own_gmsh_model("pin"):
+        r = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
+        gmsh.model.occ.synchronize()
+        gmsh.model.addPhysicalGroup(2, [r], 1, "domain")
+        gmsh.model.addPhysicalGroup(1, [t for _, t in gmsh.model.getEntities(1)], 2, "wall")
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.3)
+        gmsh.model.mesh.generate(2)
+        gmsh.option.setNumber("Mesh.Binary", 0)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.write(str(tmp_path / "plain.msh"))
+        gmsh.model.addPhysicalGroup(0, [gmsh.model.getEntities(0)[0][1]], 3, "pin")
+        for version in (2.2, 4.1):
+            for binary in (0, 1):
+                gmsh.option.setNumber("Mesh.MshFileVersion", version)
+                gmsh.option.setNumber("Mesh.Binary", binary)
+                gmsh.write(str(tmp_path / f"pin-{version}-{binary}.msh"))
+        gmsh.option.setNumber("Mesh.Binary", 0)
+    plain = qdrefine.read(tmp_path / "plain.msh")
+    for path in sorted(tmp_path.glob("pin-*.msh")):
+        with pytest.warns(UserWarning, match=rf"{path.name}: 1 tagged point cells \(Gmsh "
+                                             "physical points\\) are dropped") as said:
+            mesh = qdrefine.read(path)
+        assert len(said) == 1, path.name
+        assert np.allclose(mesh.points, plain.points, rtol=0, atol=1e-15)
+        for name in ("triangles", "cell_tags", "edges", "edge_tags"):
+            assert np.array_equal(getattr(mesh, name), getattr(plain, name)), (path, name)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import stat
+import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -154,6 +155,7 @@ def from_blocks(path: Path, points: NDArray, blocks: list[tuple[str, NDArray]],
     ``point_numbers``: the file's own number of every point (for messages)."""
     tris, tri_tags, lines, line_tags = [], [], [], []
     others: dict[str, int] = {}
+    tagged_vertices = 0
     for (kind, data), tag in zip(blocks, tags, strict=True):
         if kind == "triangle":
             tris.append(data)
@@ -162,8 +164,14 @@ def from_blocks(path: Path, points: NDArray, blocks: list[tuple[str, NDArray]],
             if tag is not None:
                 lines.append(data)
                 line_tags.append(tag)
-        elif kind != "vertex":
+        elif kind == "vertex":
+            tagged_vertices += 0 if tag is None else int(np.count_nonzero(tag))
+        else:
             others[kind] = others.get(kind, 0) + len(data)
+    if tagged_vertices:  # the points stay; their tags (a pin, a load point) would go unsaid
+        warnings.warn(f"{path}: {tagged_vertices} tagged point cells (Gmsh physical points) "
+                      "are dropped: a Mesh holds cell tags and tagged edges only",
+                      stacklevel=3)
     raw = RawMesh(path, np.empty((0, 2)), np.empty((0, 3), dtype=np.int64),
                   point_numbers=point_numbers)
     flat_points(raw, points)
