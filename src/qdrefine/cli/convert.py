@@ -26,7 +26,7 @@ def add_args(parser: argparse.ArgumentParser) -> None:
     _common.add_format_version(parser)
     _common.add_compress(parser)
     parser.add_argument("--chunk-size", type=_positive, default=None, metavar="ROWS",
-                        help="rows per chunk of a new store (default 262144)")
+                        help="rows per chunk of a new store (default 262144, at most 16777216)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -55,6 +55,7 @@ from .layout import (
     ARRAYS,
     DEFAULT_CHUNK_SIZE,
     DIMENSIONS,
+    MAX_CHUNK_SIZE,
     NODE_COORDINATES,
     MeshStore,
     finish,
@@ -71,6 +72,6 @@ from .locations import PathLike, filesystem, is_local, location
 
 __all__ = ["MeshStore", "create", "open", "to_mesh", "from_file", "to_file", "is_store",
            "clean", "location", "filesystem", "new_group", "finish", "remove", "writing",
-           "node_coordinates", "DEFAULT_CHUNK_SIZE", "STREAMING_EXPORT", "ARRAYS",
+           "node_coordinates", "DEFAULT_CHUNK_SIZE", "MAX_CHUNK_SIZE", "STREAMING_EXPORT", "ARRAYS",
            "NODE_COORDINATES", "DIMENSIONS", "PathLike", "is_local", "written",
            "read_rows"]

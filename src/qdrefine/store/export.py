@@ -48,8 +48,8 @@ def create(path: PathLike, mesh: Mesh, chunk_size: int = DEFAULT_CHUNK_SIZE,
         Local directory to create (by convention ``name.zarr``) or URL; an existing store
         is replaced.
     mesh : Mesh
-    chunk_size : int, > 0
-        Rows per chunk of every array.
+    chunk_size : int, 1 .. 2**24
+        Rows per chunk of every array (a chunk is made whole in memory to be written).
     metadata : mapping, optional
         JSON-serializable metadata kept with the mesh.
 

@@ -192,9 +192,19 @@ def compressor():
     return BloscCodec(cname="lz4", clevel=5, shuffle="shuffle")
 
 
+#: The most rows per chunk: a chunk is made whole in memory when it is written (one of
+#: points takes 16 bytes a row, 256 MiB at this size), even for an array of fewer rows.
+MAX_CHUNK_SIZE = 1 << 24
+
+
 def chunk_size_of(value: object) -> int:
+    """``value`` as rows per chunk; ``ValueError`` unless ``1 <= value <=``
+    :data:`MAX_CHUNK_SIZE` (``2**32`` asked for 64 GiB for a mesh of 5 points; review)."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value <= 0:
         raise ValueError(f"chunk_size must be a positive integer, got {value!r}")
+    if value > MAX_CHUNK_SIZE:
+        raise ValueError(f"chunk_size must be at most {MAX_CHUNK_SIZE} rows (2**24; a chunk is "
+                         f"made whole in memory to be written), got {value}")
     return int(value)
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from ..interrupts import signals_held
 from ..io import permission_bits
-from ..io.atomic import cannot_write
+from ..io.atomic import WRITE_ERRNOS, cannot_write
 from .layout import finish, is_store
 from .locations import PathLike, filesystem, is_local, join, location, split
 
@@ -51,6 +51,11 @@ def writing(path: PathLike) -> Iterator[str]:
         yield tmp
         finish(tmp)
         replace(tmp, url)
+    except OSError as exc:
+        remove(tmp)
+        if exc.errno in WRITE_ERRNOS:  # a full disk, a size limit: named as files name it
+            raise cannot_write(url, exc.strerror or str(exc), exc.errno) from None
+        raise
     except BaseException:
         remove(tmp)
         raise
