@@ -233,8 +233,11 @@ def _check_room(h5_path: Path, needed: int) -> None:
                                     f"{soft} bytes)", errno.EFBIG)
     try:
         free = shutil.disk_usage(h5_path.parent).free
-    except OSError:
-        return  # the write says what is wrong
+        read_only = bool(os.statvfs(h5_path.parent).f_flag & os.ST_RDONLY)
+    except (OSError, AttributeError):  # no statvfs (Windows): the write says what is wrong
+        return
+    if read_only:  # it has little room too, but that is not why (review)
+        raise cannot_write(h5_path, os.strerror(errno.EROFS), errno.EROFS)
     if needed > free:
         raise cannot_write(h5_path, f"{os.strerror(errno.ENOSPC)} (the HDF5 file needs about "
                                     f"{needed} bytes, {free} are free)", errno.ENOSPC)
