@@ -1330,3 +1330,37 @@ def test_an_xdmf_write_past_the_file_size_limit_is_one_line(tmp_path, compress):
                           preexec_fn=limit, timeout=300)
     assert done.returncode == 0, done.stderr
     assert qdrefine.read(tmp_path / "s.xdmf").n_triangles == examples.square(2).n_triangles
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX resource limits")
+def test_a_store_write_the_kernel_refuses_names_the_store(tmp_path):
+    """A full disk or a file size limit while a store was written said only "[Errno 27]
+    File too large" (review): named as a file's refused write is, with nothing left."""
+    src = tmp_path / "in.msh"
+    qdrefine.write(src, qdrefine.refine(examples.plate_with_hole(), levels=2))
+    before = _snapshot(tmp_path)
+    result = subprocess.run([sys.executable, "-m", "qdrefine", "convert", src,
+                             tmp_path / "out.zarr", "-q"],
+                            capture_output=True, text=True, timeout=300,
+                            preexec_fn=_file_size_limit(20_000))
+    assert result.returncode == 1, result.stderr
+    assert result.stderr.strip().splitlines()[-1] == (
+        f"qdrefine: error: {tmp_path / 'out.zarr'}: cannot write: File too large")
+    assert _snapshot(tmp_path) == before
+
+
+@pytest.mark.skipif(not hasattr(os, "statvfs"), reason="POSIX statvfs")
+def test_an_xdmf_write_to_a_read_only_filesystem_says_so(tmp_path, monkeypatch):
+    """A read-only filesystem with little free space was reported as "No space left on
+    device" by the size check before HDF5 starts (review, on a 64 kB read-only tmpfs)."""
+    import collections
+    import shutil
+
+    real = os.statvfs
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: collections.namedtuple(
+        "usage", "total used free")(65536, 65536, 0))
+    monkeypatch.setattr(os, "statvfs", lambda path: type("V", (), {
+        "f_flag": real(path).f_flag | os.ST_RDONLY})())
+    with pytest.raises(OSError, match=r"m\.h5: cannot write: Read-only file system$"):
+        qdrefine.write(tmp_path / "m.xdmf", examples.plate_with_hole())
+    assert list(tmp_path.iterdir()) == []

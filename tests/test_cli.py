@@ -46,6 +46,26 @@ def test_demo_prints_a_summary_and_writes_files(tmp_path, capsys):
     assert (tmp_path / "out" / "plate_with_hole_7t-qd.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_demo_writes_all_of_its_files_or_none(tmp_path, monkeypatch, capsys):
+    """A write refused half way (a full disk) left the meshes written before it, and the
+    folder; ``paper`` left its first figures without a report (review). The files appear
+    together, or none does: no folder made, an existing folder's files kept."""
+    from qdrefine.cli import _common
+
+    def full(path, text):
+        raise OSError(28, "No space left on device", str(path))
+
+    monkeypatch.setattr(_common, "write_text", full)
+    assert main(["demo", str(tmp_path / "new"), "--levels", "1", "-q"]) == 1
+    assert "No space left on device" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "old").mkdir()
+    (tmp_path / "old" / "report.txt").write_text("kept")
+    assert main(["demo", str(tmp_path / "old"), "--levels", "1", "-q"]) == 1
+    assert [p.name for p in (tmp_path / "old").iterdir()] == ["report.txt"]
+    assert (tmp_path / "old" / "report.txt").read_text() == "kept"
+
+
 def test_demo_subprocess_default_directory(tmp_path):
     result = cli("demo", "--levels", "1", "--quiet", cwd=tmp_path)
     assert result.returncode == 0, result.stderr

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import examples, report
-from ..io import make_directory, write
+from ..io import write
+from ..io.atomic import file_set
 from ..mesh import Mesh
 from ..plot import mesh as plot_mesh
 from ..quality import min_angles
@@ -60,10 +61,16 @@ def _run(args: argparse.Namespace) -> int:
     else:  # and too little memory too
         report.check_study_memory(examples.plate_with_hole(), scheme_names(), args.levels,
                                   "the demo", keep_all=True)
-    make_directory(out)
     say = (lambda *a: None) if args.quiet else print
-    if args.afem:
-        return _afem(out, args.cycles, say, args.quiet)
+    with file_set(out) as tmp:  # every file, or none (and no folder made)
+        names = _afem(tmp, args.cycles, say, args.quiet) if args.afem else \
+            _plate(tmp, args.levels, say, args.quiet)
+    say("wrote " + ", ".join(str(out / name) for name in names))
+    return 0
+
+
+def _plate(out: Path, levels: int, say, quiet: bool) -> list[str]:
+    """The plate demo: every scheme, ``levels`` levels; the files' names in ``out``."""
     mesh = examples.plate_with_hole()
     say(f"example: plate with a hole, {mesh.n_points} points, {mesh.n_triangles} triangles, "
         f"min angle {min_angles(mesh).min():.2f} deg")
@@ -74,10 +81,10 @@ def _run(args: argparse.Namespace) -> int:
     chi0 = euler_characteristic(mesh)
     names = scheme_names()
     finest = {}
-    with _common.Progress(len(names) * args.levels + 3, args.quiet) as progress:
+    with _common.Progress(len(names) * levels + 3, quiet) as progress:
         for name in names:
             fine = mesh
-            for level in range(1, args.levels + 1):
+            for level in range(1, levels + 1):
                 progress.step(f"{name}, level {level}")
                 fine = refine(fine, name)
                 finest[name] = fine
@@ -91,26 +98,25 @@ def _run(args: argparse.Namespace) -> int:
             say(f"{', '.join(group)}: the same meshes here (they choose differently only on "
                 "some shapes; docs/schemes.md)")
         progress.step("writing meshes")
-        fine = refine(mesh, "7t-qd", args.levels)
+        fine = refine(mesh, "7t-qd", levels)
         stem = "plate_with_hole_7t-qd"
         files = [out / "plate_with_hole.msh", out / f"{stem}.msh", out / f"{stem}.png",
                  out / "report.txt"]
         write(files[0], mesh)
         write(files[1], fine)
         progress.step("drawing")
-        levels = _common.counted(args.levels, "level")
+        counted = _common.counted(levels, "level")
         ax = plot_mesh(fine, color="min-angle",
-                       title=f"Plate with a hole, 7T-QD, {levels}: "
+                       title=f"Plate with a hole, 7T-QD, {counted}: "
                              f"{fine.n_triangles} triangles")
         _common.save_figure(ax.figure, files[2])
         progress.step("writing the report")
-        text = (f"{files[1].name}: the example refined by 7t-qd, {levels}\n\n"
+        text = (f"{files[1].name}: the example refined by 7t-qd, {counted}\n\n"
                 + report.format_info(report.info(fine)) + "\n\n"
                 + report.format_quality(report.quality(fine)) + "\n")
         _common.write_text(files[3], text)
     say("")
-    say("wrote " + ", ".join(str(f) for f in files))
-    return 0
+    return [f.name for f in files]
 
 
 def _same_meshes(meshes: dict[str, Mesh]) -> list[list[str]]:
@@ -128,8 +134,9 @@ def _same_meshes(meshes: dict[str, Mesh]) -> list[list[str]]:
     return [g for g in groups if len(g) > 1]
 
 
-def _afem(out: Path, cycles: int, say, quiet: bool) -> int:
-    """``--afem``: the adaptive loop of :mod:`qdrefine.afem` for every method."""
+def _afem(out: Path, cycles: int, say, quiet: bool) -> list[str]:
+    """``--afem``: the adaptive loop of :mod:`qdrefine.afem` for every method; the files'
+    names in ``out``."""
     import matplotlib.pyplot as plt
 
     from .. import afem
@@ -160,5 +167,4 @@ def _afem(out: Path, cycles: int, say, quiet: bool) -> int:
     files = [out / "afem.png", out / "afem.json"]
     _common.save_figure(fig, files[0])
     _common.write_text(files[1], json.dumps(results, indent=1) + "\n")
-    say("wrote " + ", ".join(str(f) for f in files))
-    return 0
+    return [f.name for f in files]

@@ -13,8 +13,8 @@ from pathlib import Path
 
 PathLike = str | os.PathLike
 
-__all__ = ["WRITE_ERRNOS", "atomic_path", "atomic_paths", "cannot_write", "make_directory",
-           "permission_bits"]
+__all__ = ["WRITE_ERRNOS", "atomic_path", "atomic_paths", "cannot_write", "file_set",
+           "make_directory", "permission_bits"]
 
 
 @contextlib.contextmanager
@@ -52,6 +52,36 @@ def make_directory(path: PathLike) -> Path:
     except OSError as exc:
         raise cannot_write(path, exc.strerror or str(exc), exc.errno) from None
     return path
+
+
+@contextlib.contextmanager
+def file_set(folder: PathLike) -> Iterator[Path]:
+    """Yield a temporary folder inside ``folder`` (made if missing) for a set of files that
+    appear in ``folder`` together: once every one is written, each is moved in by a rename
+    (replacing a file of its name). On any exception none appears: the temporary folder is
+    removed, and ``folder`` too if this made it (``demo`` and ``paper`` left the files
+    written before a full disk stopped them; review)."""
+    import shutil
+    import tempfile
+
+    folder = Path(folder)
+    made = not folder.exists()
+    make_directory(folder)
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=".qdrefine-", suffix=".tmp", dir=folder))
+    except OSError as exc:
+        raise cannot_write(folder, exc.strerror or str(exc), exc.errno) from None
+    try:
+        yield tmp
+        for entry in sorted(tmp.iterdir()):
+            os.replace(entry, folder / entry.name)
+        tmp.rmdir()
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if made:
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only if empty
+        raise
 
 
 @contextlib.contextmanager

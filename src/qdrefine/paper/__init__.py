@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import diagram as dg
-from ..io import atomic_path, make_directory
+from ..io import atomic_path
+from ..io.atomic import file_set
 from .claims import PAPER_CLAIMS, PAPER_TABLE1
 from .cost import decision_costs
 from .figures import save_all
@@ -102,17 +103,17 @@ def write_all(outdir: str | Path, figures: bool = True,
     out = Path(outdir)
     if out.exists() and not out.is_dir():  # before a minute of work, not after it
         raise NotADirectoryError(f"{out}: exists and is not a directory")
-    make_directory(out)
-    if not os.access(out, os.W_OK | os.X_OK):
+    if out.is_dir() and not os.access(out, os.W_OK | os.X_OK):
         raise PermissionError(f"{out}: cannot write into this directory")
     say = progress or (lambda _: None)
     ctx = compute_context(progress=say)
-    if figures:
-        say("drawing the figures")
-    ctx["figures"] = save_all(out, ctx) if figures else []
-    ctx["seconds"] = time.time() - start
     path = out / "report.md"
-    say(f"writing {path}")
-    with atomic_path(path) as tmp:  # no partial report.md, and the error names the file
-        Path(tmp).write_text(build_report(ctx), encoding="utf-8")
+    with file_set(out) as folder:  # the figures and the report, or none of them
+        if figures:
+            say("drawing the figures")
+        ctx["figures"] = save_all(folder, ctx) if figures else []
+        ctx["seconds"] = time.time() - start
+        say(f"writing {path}")
+        with atomic_path(folder / path.name) as tmp:  # the error names the file
+            Path(tmp).write_text(build_report(ctx), encoding="utf-8")
     return path
