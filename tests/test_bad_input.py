@@ -1364,3 +1364,28 @@ def test_an_xdmf_write_to_a_read_only_filesystem_says_so(tmp_path, monkeypatch):
     with pytest.raises(OSError, match=r"m\.h5: cannot write: Read-only file system$"):
         qdrefine.write(tmp_path / "m.xdmf", examples.plate_with_hole())
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("ext", [".msh", ".vtu", ".xdmf", ".off", ".obj", ".node", ".vtk",
+                                 ".stl", ".ply", ".mesh"])
+def test_an_empty_file_is_said_to_be_empty(tmp_path, ext):
+    """Each format said it its own way: "meshio refused it without a reason" (.vtu),
+    "nothing after the OFF line", "no $MeshFormat section (empty file?)" (review)."""
+    (tmp_path / f"e{ext}").write_bytes(b"")
+    with pytest.raises(ValueError, match=rf"^{re.escape(str(tmp_path / f'e{ext}'))}: the file "
+                                         "is empty$"):
+        qdrefine.read(tmp_path / f"e{ext}")
+
+
+def test_an_output_name_ending_in_a_slash_is_refused(tmp_path):
+    """``refine in.msh out.msh/`` wrote the file out.msh (review): a name ending in '/'
+    names a directory."""
+    src = tmp_path / "in.msh"
+    qdrefine.write(src, examples.square(1))
+    result = cli("refine", src, f"{tmp_path}/out.msh/")
+    assert result.returncode == 1
+    assert result.stderr == (f"qdrefine: error: {tmp_path}/out.msh/: a file name cannot end "
+                             "in '/' (it names a directory)\n")
+    with pytest.raises(ValueError, match="a file name cannot end in '/'"):
+        qdrefine.write(f"{tmp_path}/out.vtu/", examples.square(1))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.msh"]

@@ -584,3 +584,14 @@ def test_ctrl_c_while_the_commands_load_is_one_line(monkeypatch, capsys):
     monkeypatch.setattr(importlib, "import_module", interrupted)
     assert main(["info", "x.msh"]) == 130
     assert capsys.readouterr().err == "qdrefine: interrupted\n"
+
+
+def test_counts_of_one_are_singular(tmp_path, run):
+    """"1 triangles" in the check header and the info tag lines (review)."""
+    path = tmp_path / "one.msh"
+    qdrefine.write(path, qdrefine.Mesh([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]], cell_tags=[3],
+                                       edges=[[0, 1]], edge_tags=[4]))
+    assert "3 points (3 used), 1 triangle, 3 edges (3 on the boundary)" in \
+        run("check", path).stdout
+    info = run("info", path).stdout
+    assert "3: 1 triangle, area 0.5" in info and "4: 1 edge, length 1" in info

@@ -184,6 +184,9 @@ def test_bad_marks_give_one_line_and_no_output(tmp_path, extra, code, message, r
     assert result.stderr.startswith("qdrefine: error: "), result.stderr
     assert message in result.stderr and result.stderr.count("\n") == 1, result.stderr
     assert result.stdout == "" and not out.exists()
+    if extra[0] == "--mark-file" and "carried" not in extra[-1]:  # named by the mark file
+        # only (review: "in.msh: range.txt, line 2: ..." when the refinement read it)
+        assert result.stderr.startswith(f"qdrefine: error: {extra[-1].format(tmp=tmp_path)}")
 
 
 def test_negative_box_and_any_case_scheme_names(tmp_path):
@@ -198,6 +201,10 @@ def test_negative_box_and_any_case_scheme_names(tmp_path):
     expected = qdrefine.refine(qdrefine.read(src), "7t-qd",
                                marked=mark_box(qdrefine.read(src), (-1, -1, -0.5, -0.5)))
     same_mesh(qdrefine.read(out), expected)
+    # abbreviated as argparse allows ("expected one argument" before; review)
+    assert main(["refine", str(src), str(tmp_path / "ab.msh"), "--mark-b", "-1,-1,-0.5,-0.5",
+                 "-q"]) == 0
+    same_mesh(qdrefine.read(tmp_path / "ab.msh"), expected)
 
 
 def test_coarsen_undoes_refine(tmp_path, run):

@@ -538,6 +538,13 @@ def test_what_a_store_cannot_hold_is_dropped_with_a_warning(tmp_path):
                                          r"tags and tagged edges; point data, physical names "
                                          r"are dropped"):
         store.create(tmp_path / "m.zarr", mesh)
+    # one plural noun takes "are" ("physical names is dropped"; review)
+    with pytest.warns(UserWarning, match=r"edges; physical names are dropped$"):
+        store.create(tmp_path / "n.zarr", examples.square(2).replace(
+            physical_names={(2, 1): "a"}))
+    with pytest.warns(UserWarning, match=r"edges; point data is dropped$"):
+        store.create(tmp_path / "d.zarr", examples.square(2).replace(
+            point_data={"u": np.zeros(9)}))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         store.create(tmp_path / "plain.zarr", examples.square(2))

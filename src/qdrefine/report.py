@@ -27,7 +27,13 @@ from .refine import refine
 from .schemes import get_scheme, scheme_names
 from .topology import boundary_edges, conformity, euler_characteristic
 
-__all__ = ["info", "quality", "compare", "format_info", "format_quality", "format_compare"]
+__all__ = ["info", "quality", "compare", "format_info", "format_quality", "format_compare",
+           "counted"]
+
+
+def counted(n: int, noun: str) -> str:
+    """``"1 triangle"``, ``"2 triangles"``: a count with its noun, plural unless one."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def _stats(values: np.ndarray) -> dict[str, float]:
@@ -227,13 +233,15 @@ def format_info(d: dict[str, Any]) -> str:
         lines.append("cell tags             none")
     else:
         lines.append("cell tags             " + ", ".join(
-            f"{tag_label(t, v.get('name'))}: {v['triangles']} triangles, area {v['area']:.6g}"
+            f"{tag_label(t, v.get('name'))}: {counted(v['triangles'], 'triangle')}, area "
+            f"{v['area']:.6g}"
             for t, v in d["cell_tags"].items()))
     if d["edge_tags"] is None:
         lines.append("edge tags             none")
     else:
         lines.append("edge tags             " + ", ".join(
-            f"{tag_label(t, v.get('name'))}: {v['edges']} edges, length {v['length']:.6g}"
+            f"{tag_label(t, v.get('name'))}: {counted(v['edges'], 'edge')}, length "
+            f"{v['length']:.6g}"
             for t, v in d["edge_tags"].items()))
     return "\n".join(lines)
 

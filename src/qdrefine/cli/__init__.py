@@ -178,9 +178,10 @@ def _joined_negative_values(argv: list[str]) -> list[str]:
     with ``-`` for an option unless it is a single number."""
     out, i = [], 0
     while i < len(argv):
-        if argv[i] == "--mark-box" and i + 1 < len(argv) and argv[i + 1].startswith("-") \
-                and "," in argv[i + 1]:
-            out.append(f"--mark-box={argv[i + 1]}")
+        # the option as given, or abbreviated as argparse allows (--mark-b: review)
+        if len(argv[i]) >= len("--mark-b") and "--mark-box".startswith(argv[i]) \
+                and i + 1 < len(argv) and argv[i + 1].startswith("-") and "," in argv[i + 1]:
+            out.append(f"{argv[i]}={argv[i + 1]}")
             i += 2
         else:
             out.append(argv[i])

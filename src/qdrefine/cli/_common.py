@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..io import FORMATS, GMSH_VERSIONS, atomic_path, write
+from ..report import counted  # noqa: F401  (the commands count with it)
 from ..schemes import get_scheme
 from ..store.locations import location
 
@@ -52,8 +53,9 @@ def add_mesh_in_out(parser: argparse.ArgumentParser, options: Callable[[], None]
                              "--format-version 2.2)")
     options()
     parser.add_argument("--binary", action="store_true",
-                        help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply "
-                             "(much faster for large meshes)")
+                        help="write .msh or .stl as binary (text by default; much faster "
+                             "for large meshes); .vtk, .vtu and .ply are written binary "
+                             "anyway")
     add_format_version(parser)
     add_compress(parser)
 
@@ -114,11 +116,6 @@ def history_mismatch(path: str, scheme: str, exc: HistoryMismatch) -> ValueError
     return ValueError(f"{path}: its refinement history (cell data qdrefine:transitions) does "
                       f"not fit scheme {scheme}: {exc.detail}; refine and coarsen it with the "
                       "scheme it was refined with")
-
-
-def counted(n: int, noun: str) -> str:
-    """``"1 triangle"``, ``"2 triangles"``: a count with its noun, plural unless one."""
-    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def scheme_name(text: str) -> str:
@@ -238,6 +235,8 @@ def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
     (either) or ``"picture"``.
     """
     out = Path(path)
+    if str(path).endswith(("/", os.sep)) and out.suffix.lower() != STORE:  # Path() drops it
+        raise ValueError(f"{path}: a file name cannot end in '/' (it names a directory)")
     if kinds in ("store", "any") and out.suffix.lower() == STORE:
         if binary:
             raise ValueError(f"{out}: --binary applies to mesh files, not to Zarr stores")

@@ -113,8 +113,10 @@ def format_report(report: dict[str, Any]) -> str:
     """The report as text: one line of figures, one line per problem, the verdict."""
     lines = []
     if report.get("triangles") is not None:
-        lines.append(f"{report['file']}: {report['points']} points ({report['used_points']} "
-                     f"used), {report['triangles']} triangles, {report['edges']} edges "
+        lines.append(f"{report['file']}: {_common.counted(report['points'], 'point')} "
+                     f"({report['used_points']} used), "
+                     f"{_common.counted(report['triangles'], 'triangle')}, "
+                     f"{_common.counted(report['edges'], 'edge')} "
                      f"({report['boundary_edges']} on the boundary), Euler characteristic "
                      f"{report['euler_characteristic']}; " + (
                          "points and triangles named by the file's own node and element "

@@ -22,7 +22,8 @@ def add_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("output", metavar="OUT", help="mesh file or .zarr store (path or URL) "
                         "to write (complete or absent)")
     parser.add_argument("--binary", action="store_true",
-                        help="write the binary variant of .msh, .vtk, .vtu, .stl or .ply")
+                        help="write .msh or .stl as binary (text by default); .vtk, .vtu "
+                        "and .ply are written binary anyway")
     _common.add_format_version(parser)
     _common.add_compress(parser)
     parser.add_argument("--chunk-size", type=_positive, default=None, metavar="ROWS",

@@ -63,7 +63,10 @@ def run(args: argparse.Namespace) -> int:
             except HistoryMismatch as exc:
                 raise _common.history_mismatch(args.input, args.scheme, exc) from None
             except ValueError as exc:  # e.g. a triangle too thin for float64 children
-                if str(exc).startswith(f"{args.input}:"):
+                named = [args.input]  # a mark file's errors name it, not the mesh
+                if getattr(args, "mark_file", None):
+                    named.append(args.mark_file)
+                if str(exc).startswith(tuple(f"{n}{c}" for n in named for c in ":,")):
                     raise
                 raise ValueError(f"{args.input}: {exc}") from None
             refine_s, start = time.perf_counter() - start, time.perf_counter()

@@ -45,6 +45,7 @@ the targets only once everything is written, so a failure never leaves a partial
 
 from __future__ import annotations
 
+import contextlib
 import os
 import warnings
 from collections.abc import Callable
@@ -162,8 +163,8 @@ def read(path: PathLike) -> Mesh:
     Mesh
         Points ``(N, 2)`` (z dropped when every z is 0), counter-clockwise triangles
         ``(M, 3)`` (clockwise ones flipped, with a warning), ``cell_tags (M,)`` and tagged
-        ``edges (K, 2)``, ``point_data``, ``cell_data``, ``physical_names`` and
-        ``transitions`` where the file has them.
+        ``edges (K, 2)``, ``point_data``, ``cell_data``, ``physical_names``,
+        ``transitions`` and ``origins`` where the file has them.
 
     Raises
     ------
@@ -234,6 +235,9 @@ def read_raw(path: PathLike) -> RawMesh:
     """
     path = Path(path)
     reader = _format_of(path).reader()
+    with contextlib.suppress(OSError):  # the reader says what is wrong
+        if path.is_file() and path.stat().st_size == 0:  # each format said it its own way
+            raise ValueError(f"{path}: the file is empty")  # ("meshio refused it ...")
     size = _bytes_of(path)
     check_needed(reading_needed_for_bytes(size),
                  f"reading {path} ({size / 2**20:.3g} MiB with the files it names)")
@@ -270,10 +274,10 @@ def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
     path : str or os.PathLike
     mesh : Mesh
     binary : bool, optional
-        The binary variant of ``.msh``, ``.vtk``, ``.vtu``, ``.stl`` and ``.ply`` (other
-        formats refuse ``binary=True``). By default ``.msh`` and ``.stl`` are text and
-        ``.vtk``, ``.vtu``, ``.ply`` binary. Binary is several times faster for large
-        meshes (``docs/performance.md``).
+        The binary variant of ``.msh``, ``.vtk``, ``.stl`` and ``.ply`` (other formats
+        refuse ``binary=True``). By default ``.msh`` and ``.stl`` are text and ``.vtk``,
+        ``.ply`` binary; ``.vtu`` is binary only (``binary=False`` is refused). Binary is
+        several times faster for large meshes (``docs/performance.md``).
     format_version : {"4.1", "2.2"}, optional
         Gmsh ``.msh`` only: the MSH version (default 4.1, what current Gmsh writes).
     compress : bool
@@ -292,6 +296,9 @@ def write(path: PathLike, mesh: Mesh, *, binary: bool | None = None,
     a warning, as is any edge tag equal to 0 (0 reads as untagged).
     """
     need_mesh(mesh, "write")
+    if os.fspath(path).endswith(("/", os.sep)):  # Path() drops it: "o.msh/" wrote o.msh
+        raise ValueError(f"{os.fspath(path)}: a file name cannot end in '/' (it names a "
+                         "directory)")
     path = Path(path)
     fmt = _format_of(path)
     if binary and fmt.binary is None:

@@ -78,7 +78,7 @@ def create(path: PathLike, mesh: Mesh, chunk_size: int = DEFAULT_CHUNK_SIZE,
     with writing(url) as tmp:  # the target checked first: no warning before a refusal
         if dropped:  # as qdrefine.write warns for a format that cannot hold them
             warnings.warn(f"{url}: mesh stores hold points, triangles, cell tags and tagged "
-                          f"edges; {', '.join(dropped)} {'is' if len(dropped) == 1 else 'are'} "
+                          f"edges; {', '.join(dropped)} {'are' if _plural(dropped) else 'is'} "
                           "dropped", stacklevel=2)
         group = new_group(tmp, {k: spec_of(v) for k, v in arrays.items()}, chunk_size,
                           metadata)
@@ -86,6 +86,12 @@ def create(path: PathLike, mesh: Mesh, chunk_size: int = DEFAULT_CHUNK_SIZE,
             if value is not None and len(value):
                 group[name][...] = value
     return open(url)
+
+
+def _plural(things: list[str]) -> bool:
+    """Whether the list ``things`` takes "are": several, or one plural noun ("physical
+    names is dropped"; review)."""
+    return len(things) > 1 or things[0].endswith("names")
 
 
 def spec_of(value: NDArray | None) -> tuple[tuple[int, ...], np.dtype] | None:
