@@ -433,3 +433,19 @@ def test_a_pickled_or_copied_mesh_stays_read_only():
                     value[0] = 99
         assert dict(other.physical_names) == {(2, 1): "plate"}
         assert not other.points.flags.writeable and not other.triangles.flags.writeable
+
+
+def test_an_edge_used_twice_by_one_triangle_is_counted_right():
+    """A triangle with a repeated vertex ``(0, 1, 1)`` uses edge (0, 1) twice: "shared by 3
+    triangles (0, 4)" named two (review)."""
+    p = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]])
+    t = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4], [0, 1, 1]])
+    messages = [x.message for x in check.find(p, t).problems if x.kind == "overused-edge"]
+    assert messages == ["edge (0, 1) is used 3 times, by triangles (0, 4) (a triangle with a "
+                        "repeated vertex uses it twice); at most two triangles may share an "
+                        "edge"]
+    q = np.vstack([p, [[0.5, -0.5]]])  # three triangles on (0, 1): named as before
+    three = np.vstack([t[:4], [[1, 0, 5], [0, 1, 2]]])
+    messages = [x.message for x in check.find(q, three).problems if x.kind == "overused-edge"]
+    assert messages == ["edge (0, 1) is shared by 3 triangles (0, 4, 5); at most two may "
+                        "share an edge"]

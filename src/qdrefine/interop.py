@@ -107,11 +107,11 @@ def from_skfem(m) -> Mesh:
         raw.cell_tags = np.zeros(len(triangles), dtype=np.int64)
         owner: dict[int, str] = {}
         for tag, name in enumerate(sorted(subdomains), start=1):
-            ids = as_ids(subdomains[name], len(triangles), f"skfem.MeshTri: subdomain {name!r}",
+            ids = as_ids(subdomains[name], len(triangles), f"{raw.path}: subdomain {name!r}",
                          "triangles")
             taken = ids[raw.cell_tags[ids] != 0]
             if taken.size:  # a cell tag is one per triangle
-                raise ValueError(f"skfem.MeshTri: triangle {int(taken[0])} is in the subdomains "
+                raise ValueError(f"{raw.path}: triangle {int(taken[0])} is in the subdomains "
                                  f"{owner[int(raw.cell_tags[taken[0]])]!r} and {name!r}; cell "
                                  "tags hold one subdomain per triangle")
             raw.cell_tags[ids] = tag
@@ -122,7 +122,7 @@ def from_skfem(m) -> Mesh:
         facets = np.asarray(m.facets, dtype=np.int64).T
         edges, tags = [], []
         for tag, name in enumerate(sorted(boundaries), start=1):
-            ids = as_ids(boundaries[name], len(facets), f"skfem.MeshTri: boundary {name!r}",
+            ids = as_ids(boundaries[name], len(facets), f"{raw.path}: boundary {name!r}",
                          "facets")
             edges.append(facets[ids])
             tags.append(np.full(len(ids), tag, dtype=np.int64))

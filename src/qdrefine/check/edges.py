@@ -152,7 +152,11 @@ def overused(found: Findings, topo: Topology) -> bool:
     """True when no edge is shared by more than two triangles."""
     return _edge_problem(found, topo, "overused-edge", topo.n_over, topo.first_over,
                          lambda edge, tris, g: f"edge {edge} is shared by {topo.count(g)} "
-                         f"triangles {tuple(tris)}; at most two may share an edge")
+                         f"triangles {tuple(tris)}; at most two may share an edge"
+                         if len(tris) == topo.count(g) else  # a repeated vertex: (0, 1, 1)
+                         f"edge {edge} is used {topo.count(g)} times, by triangles "
+                         f"{tuple(tris)} (a triangle with a repeated vertex uses it twice); "
+                         "at most two triangles may share an edge")
 
 
 def folded(found: Findings, topo: Topology) -> bool:
