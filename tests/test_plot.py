@@ -127,3 +127,17 @@ def test_physical_names_label_the_tags():
     text = report.format_info(info)
     assert "1 (inlet region): 225 triangles" in text and "3 (wall): 86 edges" in text
     assert report.info(examples.plate_with_hole())["cell_tags"]["1"]["name"] is None  # unnamed
+
+
+@pytest.mark.parametrize("color", ["min-angle", "none"])
+def test_unused_points_do_not_frame_the_picture(color):
+    """A file's unused points (kept on reading) stretched the axes: the mesh sat in one
+    corner of the picture, while ``info`` gave the triangles' box (review)."""
+    from qdrefine import Mesh
+
+    square = examples.square(2)
+    m = Mesh(np.vstack([square.points, [[5.0, 5.0]]]), square.triangles)
+    ax = plot.mesh(m, color=color)
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    assert x1 < 1.5 and y1 < 1.5 and x0 > -0.5 and y0 > -0.5

@@ -143,11 +143,14 @@ def mesh(m: Mesh, ax: Axes | None = None, *, color: str = "min-angle",
 
     _choice(color, COLORS, "color")
     p, t = np.asarray(m.points), np.asarray(m.triangles)
+    # the triangles' points only: unused points stretched the axes, the mesh in a corner
+    # (review); tagged edges are edges of triangles
+    used = np.unique(t)
     if ax is None:  # a figure shaped like the mesh, so the colour bar matches its height
-        span = np.ptp(p, axis=0)
+        span = np.ptp(p[used], axis=0)
         ratio = float(np.clip(span[1] / span[0], 0.3, 2.0)) if span[0] > 0 else 1.0
         ax = _axes(None, (8.0, 6.4 * ratio + 1.4))
-    tri = Triangulation(p[:, 0], p[:, 1], t)
+    tri = Triangulation(p[used, 0], p[used, 1], np.searchsorted(used, t))
     if edges is None:
         edges = m.n_triangles <= 60_000
     lw = float(np.clip(40.0 / np.sqrt(m.n_triangles), 0.05, 0.8)) if edges else 0.0
