@@ -332,6 +332,28 @@ def test_triangle_files_numbered_from_one(tmp_path):
         np.testing.assert_array_equal(m.edge_tags, [3, 3, 9])
 
 
+@pytest.mark.parametrize("n_attr", [1, 2])
+def test_triangle_vertex_attributes_are_point_data(tmp_path, n_attr):
+    """The vertex attributes of a ``.node`` file were dropped silently (review). They are
+    point data now, which refinement interpolates linearly, as Triangle does: a linear
+    attribute is linear on the refined mesh; writing Triangle files drops them with the
+    formats' warning."""
+    p = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]])
+    values = np.c_[p[:, 0] + 2 * p[:, 1], 3 - p[:, 0]][:, :n_attr]
+    rows = [f"{i + 1} {x:g} {y:g} " + " ".join(f"{v:g}" for v in values[i]) + " 1"
+            for i, (x, y) in enumerate(p)]
+    (tmp_path / "a.node").write_text(f"5 2 {n_attr} 1\n" + "\n".join(rows) + "\n")
+    (tmp_path / "a.ele").write_text(ELE)
+    m = qdrefine.read(tmp_path / "a.ele")
+    assert np.array_equal(m.point_data["attributes"], values[:, 0] if n_attr == 1 else values)
+    fine = qdrefine.refine(m)
+    want = np.c_[fine.points[:, 0] + 2 * fine.points[:, 1], 3 - fine.points[:, 0]][:, :n_attr]
+    np.testing.assert_allclose(fine.point_data["attributes"].reshape(-1, n_attr), want,
+                               rtol=0, atol=1e-15)
+    with pytest.warns(UserWarning, match="hold no point or cell data"):
+        qdrefine.write(tmp_path / "b.node", m)
+
+
 def test_triangle_without_poly_has_no_edges(tmp_path):
     (tmp_path / "sq.node").write_text(NODE)
     (tmp_path / "sq.ele").write_text(ELE)

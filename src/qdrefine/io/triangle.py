@@ -1,8 +1,10 @@
 """Triangle's ``.node`` / ``.ele`` / ``.poly`` files (J. R. Shewchuk's mesh generator).
 
 The first regional attribute of ``.ele`` is the cell tag; the segments of ``.poly`` with a
-nonzero boundary marker are the tagged edges. The three files are written as one set: each
-goes to a temporary file, and they replace their targets only once all three are written.
+nonzero boundary marker are the tagged edges; the vertex attributes of ``.node`` are the
+point data :data:`ATTRIBUTES` (vertex boundary markers are not read). The three files are
+written as one set: each goes to a temporary file, and they replace their targets only once
+all three are written.
 Each ends with the comment ``# qdrefine set DIGEST``, a hash of the three files' content:
 a reader that finds two different stamps in one set refuses it (a mixed set, left by an
 interrupted or concurrent write between the three renames). Files of other tools carry no
@@ -21,7 +23,12 @@ from numpy.typing import NDArray
 from ._core import MeshChunks, RawMesh, read_bytes
 from .atomic import atomic_paths
 
-__all__ = ["read", "write", "write_chunks", "base_of", "Stamping", "SET_STAMP"]
+__all__ = ["read", "write", "write_chunks", "base_of", "Stamping", "SET_STAMP", "ATTRIBUTES"]
+
+#: The point data that a ``.node`` file's vertex attributes are read as (``(N,)`` for one
+#: attribute, ``(N, A)`` for several); Triangle interpolates them linearly at new vertices,
+#: as refinement interpolates point data.
+ATTRIBUTES = "attributes"
 
 #: The comment that ends every file of a set written by qdrefine (then the digest).
 SET_STAMP = "# qdrefine set "
@@ -182,29 +189,37 @@ def read(path: Path) -> RawMesh:
     base = base_of(path)
     node_path, ele_path, poly_path = (base.with_suffix(s) for s in (".node", ".ele", ".poly"))
     _check_set([node_path, ele_path, poly_path])
-    points, first, node_lines = _read_node(_Lines(node_path))
+    points, first, node_lines, attributes = _read_node(_Lines(node_path))
     raw = RawMesh(ele_path, points, np.empty((0, 3), dtype=np.int64), base=first)
     raw.lines["point"] = (node_path, node_lines)
+    if attributes is not None:  # Triangle interpolates them linearly, as point data are
+        raw.point_data[ATTRIBUTES] = attributes[:, 0] if attributes.shape[1] == 1 else \
+            attributes
     _read_ele(_Lines(ele_path), raw, node_path)
     if poly_path.exists() and not any(p.kind == "no-triangles" for p in raw.problems):
         _read_poly(_Lines(poly_path), raw)
     return raw
 
 
-def _read_node(nodes: _Lines) -> tuple[NDArray, int, NDArray]:
+def _read_node(nodes: _Lines) -> tuple[NDArray, int, NDArray, NDArray | None]:
+    """Points ``(N, 2)``, the first vertex number, each vertex's line and its attributes
+    ``(N, A)`` (None without any)."""
     n, dim, n_attr, n_mark = nodes.header("vertex", 4, (0, 2, 0, 0))
     if dim != 2:
         raise nodes.error(f"dimension must be 2, got {dim}", nodes.rows[0][0])
     points = np.empty((n, 2))
+    attributes = np.empty((n, n_attr)) if n_attr > 0 else None
     lines = np.empty(n, dtype=np.int64)
     first = None
     for i in range(n):
-        line, words = nodes.next(f"vertex {i + 1} of {n}", 3)
+        line, words = nodes.next(f"vertex {i + 1} of {n}", 3 + max(n_attr, 0))
         idx = nodes.ints(line, words[:1], "the vertex number")[0]
         first = nodes.numbering(line, idx, i, first, "vertex")
         points[i] = nodes.floats(line, words[1:3], "the coordinates")
+        if attributes is not None:
+            attributes[i] = nodes.floats(line, words[3:3 + n_attr], "the attributes")
         lines[i] = line
-    return points, 0 if first is None else first, lines
+    return points, 0 if first is None else first, lines, attributes
 
 
 def _read_ele(eles: _Lines, raw: RawMesh, node_path: Path) -> None:
