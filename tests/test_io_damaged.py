@@ -638,3 +638,14 @@ def test_a_raw_lzma_vtu_reads_bit_for_bit(tmp_path):
     assert np.array_equal(back.points, mesh.points)
     assert np.array_equal(back.triangles, mesh.triangles)
     assert np.array_equal(back.cell_tags, mesh.cell_tags)
+
+
+@pytest.mark.parametrize("body, missing", [("", "Nodes"),
+                                           ("$Nodes\n1 1\n1 0 0 1\n1 0 0 0\n$EndNodes\n",
+                                            "Elements")])
+def test_a_msh40_file_without_its_sections_says_which(tmp_path, body, missing):
+    """MSH 4.0 goes to meshio, which said "cannot access local variable 'cells' where it is
+    not associated with a value" for a file of its header alone (review)."""
+    path = tmp_path / "m.msh"
+    path.write_text("$MeshFormat\n4 0 8\n$EndMeshFormat\n" + body)
+    _refused(path, f"no ${missing} section")

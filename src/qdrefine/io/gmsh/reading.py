@@ -164,6 +164,9 @@ def _read(f: _File) -> RawMesh:
                                      f"({exc})") from None
         pos = _expect_end(f, name, end)
     if c.version == "4.0":
+        for needed in ("Nodes", "Elements"):  # meshio said "cannot access local variable"
+            if needed not in seen:
+                raise f.error(len(data), f"no ${needed} section")
         return _meshio_fallback(f, c)
     if not c.version:
         raise f.error(0, "no $MeshFormat section (empty file?)")
