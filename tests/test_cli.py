@@ -275,8 +275,9 @@ def test_bad_input_through_the_entry_point(tmp_path):
     (["refine", "IN.msh", "OUT.zarr"], "OUT.zarr: a Zarr mesh store, which this command does "
                                        "not write ('refine --dask' refines into one"),
     (["plot", "IN.msh", "p.png", "--color", "tag"], "IN.msh: no cell tags to colour by"),
-    (["demo", "--afem", "--levels", "2"], "--levels applies to the plate demo"),
-    (["demo", "--cycles", "2"], "--cycles applies to --afem only"),
+    (["demo", "--afem", "--levels", "2"], "--levels applies to the plate demo; --afem takes "
+                                          "--cycles (see 'qdrefine demo --help')"),
+    (["demo", "--cycles", "2"], "--cycles applies to --afem only (see 'qdrefine demo --help')"),
     (["demo", "--afem", "--cycles", "0"], "expected a number >= 1"),
     (["paper", "IN.msh"], "IN.msh: exists and is not a directory"),
     # an output directory that cannot be made: "[Errno 20] Not a directory: ..." (review)

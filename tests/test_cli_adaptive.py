@@ -157,8 +157,11 @@ def test_uniform_refinement_is_unchanged(tmp_path, run):
     (["--mark-file", "{tmp}/carried.txt"], 1, "has a cell data field named "
                                               "'qdrefine:mark-file'"),
     (["--mark-tag", "1", "--mark-box", "0,0,1,1"], 2, "not allowed with argument"),
-    (["--cycles", "2"], 1, "--cycles needs a mark"),
-    (["--mark-tag", "1", "--levels", "2"], 1, "with a mark use --cycles"),
+    # options that do not go together: exit 2 and the --help hint, as argparse's (review)
+    (["--cycles", "2"], 2, "--cycles needs a mark: --mark-tag, --mark-box or --mark-file "
+                           "(see 'qdrefine refine --help')"),
+    (["--mark-tag", "1", "--levels", "2"], 2, "with a mark use --cycles (see 'qdrefine refine "
+                                              "--help')"),
     (["--mark-tag", "1", "--cycles", "-1"], 2, "expected a number >= 0"),
 ])
 def test_bad_marks_give_one_line_and_no_output(tmp_path, extra, code, message, run):

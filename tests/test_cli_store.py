@@ -40,8 +40,9 @@ def test_convert_round_trip_through_a_store(tmp_path, run):
 def test_convert_refuses_chunk_size_for_a_file(tmp_path, capsys):
     qdrefine.write(tmp_path / "in.msh", examples.square(2))
     assert main(["convert", str(tmp_path / "in.msh"), str(tmp_path / "out.vtk"),
-                 "--chunk-size", "5"]) == 1
-    assert "--chunk-size applies to a .zarr output only" in capsys.readouterr().err
+                 "--chunk-size", "5"]) == 2
+    assert "--chunk-size applies to a .zarr output only (see 'qdrefine convert --help')" in \
+        capsys.readouterr().err
     assert not (tmp_path / "out.vtk").exists()
 
 

@@ -471,7 +471,7 @@ def test_compressed_output_is_smaller_and_reads_back_the_same(tmp_path, ext, run
     with pytest.raises(ValueError, match="compression applies to .vtu and .xdmf"):
         qdrefine.write(tmp_path / "m.msh", mesh, compress=True)
     result = run("refine", DATA / "two_regions_22.msh", tmp_path / "o.msh", "--compress")
-    assert result.returncode == 1 and result.stderr.count("\n") == 1
+    assert result.returncode == 2 and result.stderr.count("\n") == 1
     assert "--compress applies to .vtu and .xdmf (.xmf) output only" in result.stderr
 
 

@@ -715,7 +715,7 @@ def test_metadata_of_any_kind_is_kept_through_refinement(tmp_path):
 def test_format_version_is_refused_for_a_store_output_on_dask(tmp_path, capsys):
     store.create(tmp_path / "in.zarr", examples.square(2))
     assert main(["refine", str(tmp_path / "in.zarr"), str(tmp_path / "out.zarr"), "--dask",
-                 "--format-version", "2.2"]) == 1
+                 "--format-version", "2.2"]) == 2
     assert "--format-version applies to Gmsh .msh output only" in capsys.readouterr().err
 
 

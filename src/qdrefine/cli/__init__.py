@@ -94,6 +94,10 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # e.g. `qdrefine info x.msh | head`: not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except _common.UsageError as exc:  # as argparse says its own
+        print(f"qdrefine: error: {_one_line(exc)} (see '{args.parser.prog} --help')",
+              file=sys.stderr)
+        return 2
     except (ValueError, OSError, MemoryError) as exc:
         print(f"qdrefine: error: {_one_line(exc)}", file=sys.stderr)
         return 1

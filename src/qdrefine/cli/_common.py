@@ -28,6 +28,12 @@ STORE = ".zarr"
 PICTURES = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
 
 
+class UsageError(ValueError):
+    """Options that do not go together (``--cycles`` without a mark, ``--compress`` for a
+    ``.msh`` output): said as argparse says its errors, with the command's ``--help``, exit
+    code 2 (they ended with exit 1 and no hint; review)."""
+
+
 def setup(parser: argparse.ArgumentParser, quiet: bool = True, quiet_also: str = "") -> None:
     """One-line argument errors (``qdrefine: error: ...``, exit 2) and ``--quiet`` (whose
     help adds ``quiet_also``, what it still prints)."""
@@ -101,13 +107,13 @@ def check_compress(path: str, compress: bool) -> None:
     from ..io import COMPRESSIBLE, FORMATS
 
     if compress and FORMATS.get(Path(path).suffix.lower()) not in COMPRESSIBLE:
-        raise ValueError(f"{path}: --compress applies to .vtu and .xdmf (.xmf) output only")
+        raise UsageError(f"{path}: --compress applies to .vtu and .xdmf (.xmf) output only")
 
 
 def check_format_version(path: str, version: str | None) -> None:
     """``--format-version`` applies to a ``.msh`` output only."""
     if version is not None and Path(path).suffix.lower() != ".msh":
-        raise ValueError(f"{path}: --format-version applies to Gmsh .msh output only")
+        raise UsageError(f"{path}: --format-version applies to Gmsh .msh output only")
 
 
 def history_mismatch(path: str, scheme: str, exc: HistoryMismatch) -> ValueError:
@@ -239,7 +245,7 @@ def check_output(path: str, inputs: tuple[str, ...] = (), kinds: str = "mesh",
         raise ValueError(f"{path}: a file name cannot end in '/' (it names a directory)")
     if kinds in ("store", "any") and out.suffix.lower() == STORE:
         if binary:
-            raise ValueError(f"{out}: --binary applies to mesh files, not to Zarr stores")
+            raise UsageError(f"{out}: --binary applies to mesh files, not to Zarr stores")
     elif kinds == "store":
         raise ValueError(f"{out}: expected a Zarr mesh store (a name ending in {STORE})")
     elif kinds in ("mesh", "any"):

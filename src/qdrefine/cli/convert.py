@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
             _common.check_format_version(args.output, args.format_version)
             _common.check_compress(args.output, args.compress)
         if args.chunk_size is not None and not to_store:
-            raise ValueError("--chunk-size applies to a .zarr output only")
+            raise _common.UsageError("--chunk-size applies to a .zarr output only")
         if from_store or to_store:
             from .. import store
 

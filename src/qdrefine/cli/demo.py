@@ -48,9 +48,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     if args.afem and args.levels is not None:
-        raise ValueError("--levels applies to the plate demo, not to --afem (see --cycles)")
+        raise _common.UsageError("--levels applies to the plate demo; --afem takes --cycles")
     if not args.afem and args.cycles is not None:
-        raise ValueError("--cycles applies to --afem only")
+        raise _common.UsageError("--cycles applies to --afem only")
     args.levels = 2 if args.levels is None else args.levels
     args.cycles = 10 if args.cycles is None else args.cycles
     out = Path(args.outdir)

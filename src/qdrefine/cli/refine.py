@@ -84,11 +84,11 @@ def _check_options(args: argparse.Namespace) -> int:
     """Option combinations argparse cannot express; returns the number of refinements."""
     marked = marks.given(args)
     if args.cycles is not None and not marked:
-        raise ValueError("--cycles needs a mark: --mark-tag, --mark-box or --mark-file")
+        raise _common.UsageError("--cycles needs a mark: --mark-tag, --mark-box or --mark-file")
     if args.levels is not None and marked:
-        raise ValueError("--levels refines every triangle; with a mark use --cycles")
+        raise _common.UsageError("--levels refines every triangle; with a mark use --cycles")
     if args.dask is not None and marked:
-        raise ValueError("--dask refines every triangle; it takes no mark")
+        raise _common.UsageError("--dask refines every triangle; it takes no mark")
     value = args.cycles if marked else args.levels
     return 1 if value is None else value
 
