@@ -452,7 +452,7 @@ def copy_store(client: Client, src: mesh_store.MeshStore, out: str, metadata: di
                timeouts: dict[str, float]) -> None:
     """``levels = 0``: the source's arrays into ``out``, chunk by chunk (``node_x`` and
     ``node_y`` from the source's ``points``: a source written before them has none), each
-    block checked as every read checks it (:func:`qdrefine.store.layout.written`), not
+    block checked as every read checks it (:func:`qdrefine.store.reading.written`), not
     validated as a mesh."""
     import dask.array as da
     import zarr
@@ -480,7 +480,7 @@ def copy_store(client: Client, src: mesh_store.MeshStore, out: str, metadata: di
 
 class _Rows:
     """A stored array as Dask reads it, each slice through
-    :func:`qdrefine.store.layout.read_rows` (a chunk that cannot be decoded is one line
+    :func:`qdrefine.store.reading.read_rows` (a chunk that cannot be decoded is one line
     naming the store, the array and the rows, not the codec's traceback)."""
 
     def __init__(self, path: str, array, name: str) -> None:
@@ -496,7 +496,7 @@ class _Rows:
 
 def _checked_block(block: NDArray, path: str, n_points: int, name: str, dtype: np.dtype,
                    block_info: dict | None = None) -> NDArray:
-    """A block of a source array, checked (:func:`qdrefine.store.layout.written`), as
+    """A block of a source array, checked (:func:`qdrefine.store.reading.written`), as
     ``dtype``."""
     start = block_info[0]["array-location"][0][0] if block_info else 0
     return mesh_store.written(path, n_points, name, start, block).astype(dtype, copy=False)
@@ -537,7 +537,7 @@ def _triangles(job: _Job, a: int, b: int) -> NDArray[np.int64]:
 def _source(job: _Job, name: str, a: int, b: int) -> NDArray:
     """Rows ``a .. b - 1`` of the source's ``name`` array, refused where they hold the fill
     value of a chunk never written or, for tags, values beyond int64
-    (:func:`qdrefine.store.layout.written`)."""
+    (:func:`qdrefine.store.reading.written`)."""
     block = mesh_store.read_rows(job.path, job.src[name], name, a, b)
     return mesh_store.written(job.path, job.n, name, a, block)
 

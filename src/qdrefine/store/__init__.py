@@ -63,12 +63,11 @@ from .layout import (
     new_group,
     node_coordinates,
     open,
-    read_rows,
     to_mesh,
-    written,
 )
 from .lifecycle import clean, remove, writing
 from .locations import PathLike, filesystem, is_local, location
+from .reading import read_rows, written
 
 __all__ = ["MeshStore", "create", "open", "to_mesh", "from_file", "to_file", "is_store",
            "clean", "location", "filesystem", "new_group", "finish", "remove", "writing",

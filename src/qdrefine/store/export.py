@@ -25,12 +25,11 @@ from .layout import (
     new_group,
     node_coordinates,
     open,
-    read_rows,
     to_mesh,
-    written,
 )
 from .lifecycle import writing
 from .locations import PathLike, location, overlap
+from .reading import read_rows, written
 
 __all__ = ["create", "from_file", "to_file", "STREAMING_EXPORT", "rows"]
 
