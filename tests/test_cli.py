@@ -62,8 +62,25 @@ def test_demo_writes_all_of_its_files_or_none(tmp_path, monkeypatch, capsys):
     (tmp_path / "old").mkdir()
     (tmp_path / "old" / "report.txt").write_text("kept")
     assert main(["demo", str(tmp_path / "old"), "--levels", "1", "-q"]) == 1
+    err = capsys.readouterr().err  # the file in its folder, not in the temporary one
+    assert f"{tmp_path / 'old' / 'report.txt'}" in err and ".qdrefine-" not in err, err
     assert [p.name for p in (tmp_path / "old").iterdir()] == ["report.txt"]
     assert (tmp_path / "old" / "report.txt").read_text() == "kept"
+    monkeypatch.undo()
+    monkeypatch.chdir(tmp_path)
+    # a name taken by a directory: refused before any file is moved in (three were)
+    (tmp_path / "old" / "report.txt").unlink()
+    (tmp_path / "old" / "report.txt").mkdir()
+    assert main(["demo", "old", "--levels", "1", "-q"]) == 1
+    assert "old/report.txt: is a directory" in capsys.readouterr().err
+    assert [p.name for p in (tmp_path / "old").iterdir()] == ["report.txt"]
+    # a replaced file keeps its permission bits (they became 0644)
+    (tmp_path / "old" / "report.txt").rmdir()
+    (tmp_path / "old" / "report.txt").write_text("mine")
+    (tmp_path / "old" / "report.txt").chmod(0o640)
+    assert main(["demo", "old", "--levels", "1", "-q"]) == 0
+    assert (tmp_path / "old" / "report.txt").stat().st_mode & 0o777 == 0o640
+    assert len(list((tmp_path / "old").iterdir())) == 4
 
 
 def test_demo_subprocess_default_directory(tmp_path):

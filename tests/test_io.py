@@ -350,7 +350,9 @@ def test_triangle_vertex_attributes_are_point_data(tmp_path, n_attr):
     want = np.c_[fine.points[:, 0] + 2 * fine.points[:, 1], 3 - fine.points[:, 0]][:, :n_attr]
     np.testing.assert_allclose(fine.point_data["attributes"].reshape(-1, n_attr), want,
                                rtol=0, atol=1e-15)
-    with pytest.warns(UserWarning, match="hold no point or cell data"):
+    # read, but not written back (a gap: the warning says so, review)
+    with pytest.warns(UserWarning, match="are written without vertex attributes or any other "
+                                         "data; attributes dropped"):
         qdrefine.write(tmp_path / "b.node", m)
 
 

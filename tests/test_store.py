@@ -729,6 +729,12 @@ def test_a_chunk_size_beyond_the_largest_is_refused(tmp_path, capsys):
                                              rf"\(2\*\*24; .*got {size}$"):
             store.create(tmp_path / "m.zarr", mesh, chunk_size=size)
     assert not (tmp_path / "m.zarr").exists()
+    # a refined store is chunked as its source, whatever wrote it: no limit there (review:
+    # a source of longer chunks, from an older qdrefine or another tool, was refused)
+    group = store.new_group(str(tmp_path / "long.zarr"), {"points": ((9, 2), np.float64),
+                                                          "triangles": ((8, 3), np.int32)},
+                            store.MAX_CHUNK_SIZE + 1)
+    assert group["triangles"].chunks == (store.MAX_CHUNK_SIZE + 1, 3)
     qdrefine.write(tmp_path / "m.msh", mesh)
     assert main(["convert", str(tmp_path / "m.msh"), str(tmp_path / "m.zarr"),
                  "--chunk-size", str(2**32)]) == 1

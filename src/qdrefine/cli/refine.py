@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from ..adaptive import HistoryMismatch, refine_marked
 from ..io import RawMesh, mesh_of, read_raw
@@ -64,8 +65,8 @@ def run(args: argparse.Namespace) -> int:
                 raise _common.history_mismatch(args.input, args.scheme, exc) from None
             except ValueError as exc:  # e.g. a triangle too thin for float64 children
                 named = [args.input]  # a mark file's errors name it, not the mesh
-                if getattr(args, "mark_file", None):
-                    named.append(args.mark_file)
+                if getattr(args, "mark_file", None):  # as given, or as Path spells it
+                    named += [args.mark_file, str(Path(args.mark_file))]
                 if str(exc).startswith(tuple(f"{n}{c}" for n in named for c in ":,")):
                     raise
                 raise ValueError(f"{args.input}: {exc}") from None

@@ -355,8 +355,10 @@ def _warn_dropped(path: Path, fmt: Format, mesh: Mesh) -> None:
     if mesh.origins is not None:
         data.append("origins")
     if data and not fmt.data:
-        warnings.warn(f"{path}: {fmt.name} files hold no point or cell data; "
-                      f"{', '.join(data)} dropped", stacklevel=3)
+        held = ("hold no point or cell data" if fmt is not _TRIANGLE else  # attributes: read
+                "are written without vertex attributes or any other data")
+        warnings.warn(f"{path}: {fmt.name} files {held}; {', '.join(data)} dropped",
+                      stacklevel=3)
     if mesh.physical_names and not fmt.names:
         warnings.warn(f"{path}: {fmt.name} files hold no physical names; they are dropped",
                       stacklevel=3)

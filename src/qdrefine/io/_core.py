@@ -169,9 +169,10 @@ def from_blocks(path: Path, points: NDArray, blocks: list[tuple[str, NDArray]],
         else:
             others[kind] = others.get(kind, 0) + len(data)
     if tagged_vertices:  # the points stay; their tags (a pin, a load point) would go unsaid
-        warnings.warn(f"{path}: {tagged_vertices} tagged point cells (Gmsh physical points) "
-                      "are dropped: a Mesh holds cell tags and tagged edges only",
-                      stacklevel=3)
+        one = tagged_vertices == 1
+        warnings.warn(f"{path}: {tagged_vertices} tagged point cell{'' if one else 's'} (such "
+                      f"as Gmsh's physical points) {'is' if one else 'are'} dropped: a Mesh "
+                      "holds cell tags and tagged edges only", stacklevel=3)
     raw = RawMesh(path, np.empty((0, 2)), np.empty((0, 3), dtype=np.int64),
                   point_numbers=point_numbers)
     flat_points(raw, points)

@@ -36,7 +36,12 @@ WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})
 def cannot_write(path: PathLike, reason: str, number: int | None) -> OSError:
     """The one-line error of a refused write: ``"PATH: cannot write: REASON"``, with the
     system's error ``number`` kept as ``errno``."""
-    error = OSError(f"{path}: cannot write: {reason}")
+    return _os_error(f"{path}: cannot write: {reason}", number)
+
+
+def _os_error(text: str, number: int | None) -> OSError:
+    """An ``OSError`` whose message is ``text``, with the system's error ``number``."""
+    error = OSError(text)
     error.errno = number
     return error
 
@@ -56,32 +61,55 @@ def make_directory(path: PathLike) -> Path:
 
 @contextlib.contextmanager
 def file_set(folder: PathLike) -> Iterator[Path]:
-    """Yield a temporary folder inside ``folder`` (made if missing) for a set of files that
-    appear in ``folder`` together: once every one is written, each is moved in by a rename
-    (replacing a file of its name). On any exception none appears: the temporary folder is
-    removed, and ``folder`` too if this made it (``demo`` and ``paper`` left the files
-    written before a full disk stopped them; review)."""
-    import shutil
+    """Yield a temporary folder inside ``folder`` (made now if missing) for a set of files
+    that appear in ``folder`` together: once every one is written, each is moved in by a
+    rename, replacing a file of its name and keeping that file's permission bits. On any
+    exception none appears: the temporary folder is removed, ``folder`` too if this made
+    it, and errors name the files in ``folder``, not in the temporary one (``demo`` and
+    ``paper`` left the files written before a full disk stopped them; review)."""
     import tempfile
 
     folder = Path(folder)
     made = not folder.exists()
     make_directory(folder)
+    tmp = None
     try:
-        tmp = Path(tempfile.mkdtemp(prefix=".qdrefine-", suffix=".tmp", dir=folder))
-    except OSError as exc:
-        raise cannot_write(folder, exc.strerror or str(exc), exc.errno) from None
-    try:
+        try:
+            tmp = Path(tempfile.mkdtemp(prefix=".qdrefine-", suffix=".tmp", dir=folder))
+        except OSError as exc:
+            raise cannot_write(folder, exc.strerror or str(exc), exc.errno) from None
         yield tmp
-        for entry in sorted(tmp.iterdir()):
+        entries = sorted(tmp.iterdir())
+        for entry in entries:  # every check before the first rename: all or none
+            target = folder / entry.name
+            if target.is_dir() and not target.is_symlink():
+                raise IsADirectoryError(f"{target}: is a directory")
+        for entry in entries:
+            os.chmod(entry, permission_bits(folder / entry.name))
             os.replace(entry, folder / entry.name)
         tmp.rmdir()
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        if made:
-            with contextlib.suppress(OSError):
-                folder.rmdir()  # only if empty
+    except (OSError, ValueError) as exc:
+        _remove_set(tmp, folder, made)
+        if tmp is not None and str(tmp) in str(exc):  # named in the folder, as written
+            text = str(exc).replace(str(tmp), str(folder))
+            if isinstance(exc, OSError):
+                raise _os_error(text, exc.errno) from None
+            raise ValueError(text) from None
         raise
+    except BaseException:
+        _remove_set(tmp, folder, made)
+        raise
+
+
+def _remove_set(tmp: Path | None, folder: Path, made: bool) -> None:
+    """What :func:`file_set` made: its temporary folder, and ``folder`` if it made it."""
+    import shutil
+
+    if tmp is not None:
+        shutil.rmtree(tmp, ignore_errors=True)
+    if made:
+        with contextlib.suppress(OSError):
+            folder.rmdir()  # only if empty
 
 
 @contextlib.contextmanager

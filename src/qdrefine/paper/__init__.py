@@ -106,9 +106,10 @@ def write_all(outdir: str | Path, figures: bool = True,
     if out.is_dir() and not os.access(out, os.W_OK | os.X_OK):
         raise PermissionError(f"{out}: cannot write into this directory")
     say = progress or (lambda _: None)
-    ctx = compute_context(progress=say)
     path = out / "report.md"
-    with file_set(out) as folder:  # the figures and the report, or none of them
+    # the figures and the report, or none of them; the folder made before a minute of work
+    with file_set(out) as folder:
+        ctx = compute_context(progress=say)
         if figures:
             say("drawing the figures")
         ctx["figures"] = save_all(folder, ctx) if figures else []

@@ -146,7 +146,8 @@ def new_group(url: str, specs: Mapping[str, tuple[tuple[int, ...], Any] | None],
     rows = {name: chunk_size[name] if isinstance(chunk_size, Mapping) else chunk_size
             for name, spec in specs.items() if spec is not None}
     attrs = {"format": FORMAT, "version": VERSION, "complete": False,
-             "chunk_size": chunk_size_of(rows["triangles"]), "qdrefine_version": __version__,
+             "chunk_size": chunk_size_of(rows["triangles"], False),
+             "qdrefine_version": __version__,
              "metadata": dict(metadata or {})}
     group = zarr.create_group(store=url, attributes={"qdrefine": attrs,
                                                      "Conventions": CONVENTIONS})
@@ -156,7 +157,7 @@ def new_group(url: str, specs: Mapping[str, tuple[tuple[int, ...], Any] | None],
         arrays |= {name: ((shape[0],), np.float64) for name in NODE_COORDINATES}
         rows |= {name: rows["points"] for name in NODE_COORDINATES}
     for name, (shape, dtype) in arrays.items():
-        chunks = (chunk_size_of(rows[name]),) + tuple(shape[1:])
+        chunks = (chunk_size_of(rows[name], False),) + tuple(shape[1:])  # create() limits
         group.create_array(name, shape=shape, chunks=chunks, dtype=dtype,
                            fill_value=FILL[name], compressors=compressor(),
                            dimension_names=DIMENSIONS[name], attributes=ATTRIBUTES[name])
@@ -192,12 +193,13 @@ def compressor():
 MAX_CHUNK_SIZE = 1 << 24
 
 
-def chunk_size_of(value: object) -> int:
+def chunk_size_of(value: object, limit: bool = True) -> int:
     """``value`` as rows per chunk; ``ValueError`` unless ``1 <= value <=``
-    :data:`MAX_CHUNK_SIZE` (``2**32`` asked for 64 GiB for a mesh of 5 points; review)."""
+    :data:`MAX_CHUNK_SIZE` (``2**32`` asked for 64 GiB for 5 points; review). ``limit=False``
+    (a refined store chunked as its source, whatever wrote the source): no upper bound."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value <= 0:
         raise ValueError(f"chunk_size must be a positive integer, got {value!r}")
-    if value > MAX_CHUNK_SIZE:
+    if limit and value > MAX_CHUNK_SIZE:
         raise ValueError(f"chunk_size must be at most {MAX_CHUNK_SIZE} rows (2**24; a chunk is "
                          f"made whole in memory to be written), got {value}")
     return int(value)

@@ -53,7 +53,8 @@ def writing(path: PathLike) -> Iterator[str]:
         replace(tmp, url)
     except OSError as exc:
         remove(tmp)
-        if exc.errno in WRITE_ERRNOS:  # a full disk, a size limit: named as files name it
+        if exc.errno in WRITE_ERRNOS and not str(exc).startswith(url):  # named already
+            # a full disk, a size limit: named as files name it
             raise cannot_write(url, exc.strerror or str(exc), exc.errno) from None
         raise
     except BaseException:
