@@ -8,7 +8,7 @@ import pytest
 from qdrefine import Mesh, examples, refine, refine_with_parents
 from qdrefine.adaptive.bounds import quality_bound
 from qdrefine.adaptive.history import families_of
-from qdrefine.marking import mark_circle, mark_point, mark_random
+from qdrefine.marking import mark_box, mark_circle, mark_point, mark_random
 from qdrefine.quality import min_angles
 from qdrefine.topology import conformity, euler_characteristic
 
@@ -214,3 +214,33 @@ def test_the_bound_is_below_every_angle_the_shapes_stand_for(scheme):
             out = refine(mesh, scheme, marked=marked)
             assert min_angles(out).min() >= bound.ratio * bound.initial
         assert min_angles(refine(mesh, scheme)).min() >= bound.ratio * bound.initial
+
+
+def test_a_tagged_edge_inside_a_family_the_step_remakes_is_refused():
+    """An edge tag between two members of a transition family (an interface a user added)
+    made ``refine(marked=...)`` return a mesh with the tagged edge ``(119, -1)`` (the
+    family's removed centroid) or an edge no triangle has, which files then could not hold
+    (review). Each family's inner edges, tagged one at a time with a member marked: the
+    result is a valid mesh, or a refusal naming the edge; both kinds of family are hit."""
+    base = examples.gmsh_mesh("l_shape")
+    m = refine(base, "7t-qd", marked=mark_box(base, (0, 0, 0.3, 0.3)))
+    rows = m.transitions
+    parents = np.unique(rows[rows[:, 0] >= 0], axis=0)
+    refused = 0
+    for parent in parents[:12]:
+        family = np.flatnonzero((rows == parent).all(axis=1))
+        for i, j in [(0, 1), (len(family) - 2, len(family) - 1)]:
+            inner = sorted(set(m.triangles[family[i]]) & set(m.triangles[family[j]]))
+            if len(inner) != 2:
+                continue
+            tagged = m.replace(edges=np.vstack([m.edges, [inner]]),
+                               edge_tags=np.r_[m.edge_tags, 9])
+            try:
+                out = refine(tagged, "7t-qd", marked=[family[-1]])
+            except ValueError as exc:
+                assert f"cannot refine: tagged edge ({inner[0]}, {inner[1]}) lies between two " \
+                       "triangles of a transition family" in str(exc), exc
+                refused += 1
+                continue
+            Mesh(out.points, out.triangles, out.cell_tags, out.edges, out.edge_tags)  # valid
+    assert refused >= 2

@@ -89,7 +89,7 @@ def test_command_line_format_version(tmp_path):
         assert out.read_bytes().split(b"\n")[1].decode() == head
         out.unlink()
     assert main(["convert", str(tmp_path / "in.msh"), str(tmp_path / "o.vtu"),
-                 "--format-version", "2.2", "-q"]) == 1
+                 "--format-version", "2.2", "-q"]) == 2  # options that do not go together
     assert not (tmp_path / "o.vtu").exists()
 
 

@@ -248,8 +248,43 @@ def _finished(before: Mesh, res: Step) -> tuple[Mesh, Families, NDArray[np.int64
         drop = drop[~used[drop]]
     keep = np.ones(mesh.n_points, dtype=bool)
     keep[drop] = False
+    if edges is not None and before.transitions is not None:
+        _refuse_lost_tagged_edges(before, mesh, edges, keep)
     out, fam, new_id = without_points(mesh, fam, keep, edges, edge_tags)
     return out, fam, (new_id if drop.size else None)
+
+
+def _refuse_lost_tagged_edges(before: Mesh, mesh: Mesh, edges: NDArray[np.int64],
+                              keep: NDArray[np.bool_]) -> None:
+    """``ValueError`` for a tagged edge ``(K, 2)`` (the step's numbering) between two
+    triangles of a transition family of ``before`` that the step joins and refines again:
+    no triangle of the step's ``mesh`` has it any more, or it ends at the family's removed
+    centroid (``keep`` False). Such meshes were returned, with the edge ``(119, -1)``, and
+    written to files that could not be read (review). Only edges of two old points that
+    both lie on transition children are looked up (none in most steps)."""
+    n = before.n_points
+    on_family = np.zeros(n, dtype=bool)
+    on_family[before.triangles[before.transitions[:, 0] >= 0].reshape(-1)] = True
+    old = (edges < n).all(axis=1)
+    suspects = np.flatnonzero(old)
+    suspects = suspects[on_family[edges[suspects]].all(axis=1)]
+    if not suspects.size:
+        return
+    ends = edges[suspects]
+    lost = ~keep[ends].all(axis=1)
+    near = np.zeros(mesh.n_points, dtype=bool)
+    near[ends.reshape(-1)] = True
+    t = mesh.triangles[near[mesh.triangles].sum(axis=1) >= 2].astype(np.int64)
+    sides = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    key = mesh.n_points
+    lo, hi = np.sort(ends, axis=1).T
+    lost |= ~np.isin(lo * key + hi, sides[:, 0] * key + sides[:, 1])
+    if lost.any():
+        a, b = (int(v) for v in ends[np.argmax(lost)])
+        raise ValueError(f"cannot refine: tagged edge ({a}, {b}) lies between two triangles "
+                         "of a transition family that this step joins and refines again, so it "
+                         "is no longer an edge of the mesh; tag only the family's outer edges, "
+                         "or drop the history (mesh.replace(transitions=None))")
 
 
 def refine_cycles(mesh: Mesh, mark: Callable[[Mesh], ArrayLike], cycles: int,
