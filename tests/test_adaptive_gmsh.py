@@ -244,3 +244,29 @@ def test_a_tagged_edge_inside_a_family_the_step_remakes_is_refused():
                 continue
             Mesh(out.points, out.triangles, out.cell_tags, out.edges, out.edge_tags)  # valid
     assert refused >= 2
+
+
+def test_a_family_of_mixed_cell_tags_made_again_warns():
+    """A user re-tagged one member of a transition family; refining or coarsening the
+    family gave all its triangles one member's tag, and the other tag's area went to 0
+    without a word (review). Warned now; a family of one tag says nothing."""
+    import warnings
+
+    from qdrefine import coarsen
+
+    base = examples.gmsh_mesh("l_shape")
+    m = refine(base, "7t-qd", marked=mark_box(base, (0, 0, 0.3, 0.3)))
+    rows = m.transitions
+    first = int(np.flatnonzero(rows[:, 0] >= 0)[0])
+    family = np.flatnonzero((rows == rows[first]).all(axis=1))
+    tags = m.cell_tags.copy()
+    tags[first] = 5
+    mixed = m.replace(cell_tags=tags)
+    with pytest.warns(UserWarning, match=r"the transition family of triangles .* holds cell "
+                                         r"tags \(1, 5\) \(1 such families\)"):
+        refine(mixed, "7t-qd", marked=[family[-1]])
+    with pytest.warns(UserWarning, match=r"holds cell tags \(1, 5\)"):
+        coarsen(mixed, np.ones(mixed.n_triangles, bool), "7t-qd")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        refine(m, "7t-qd", marked=[family[-1]])

@@ -16,6 +16,8 @@ member whose vertices, sorted by ``(x, y)``, come first in lexicographic order
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -109,6 +111,8 @@ def data_rows(before: Mesh, fam: Families, after: Mesh, parents: NDArray[np.int6
     families = np.unique(member[cand])
     counts = fam.counts()[families]
     members = blocks(fam.first()[families], counts)
+    if before.cell_tags is not None:
+        _warn_of_mixed_tags(before, members, counts)
     found, chosen = first_in_coordinate_order(before.points, before.triangles, members,
                                               np.repeat(families, counts))
     by_family = np.full(fam.n_families, -1, dtype=np.int64)
@@ -122,6 +126,23 @@ def data_rows(before: Mesh, fam: Families, after: Mesh, parents: NDArray[np.int6
     rows = parents.copy()
     rows[cand] = mapped
     return rows
+
+
+def _warn_of_mixed_tags(before: Mesh, members: NDArray[np.int64],
+                        counts: NDArray[np.int64]) -> None:
+    """Warn when a family made again holds members of different cell tags (a user re-tagged
+    one): its new triangles take one member's, so the other tag loses area (it went
+    silently; review). ``members``: the families' member rows, ``counts`` per family."""
+    tags = before.cell_tags[members]
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    mixed = np.minimum.reduceat(tags, starts) != np.maximum.reduceat(tags, starts)
+    if mixed.any():
+        i = int(np.argmax(mixed))
+        rows = members[starts[i]:starts[i] + counts[i]]
+        warnings.warn(f"the transition family of triangles {tuple(rows.tolist())} holds cell "
+                      f"tags {tuple(np.unique(before.cell_tags[rows]).tolist())} "
+                      f"({int(mixed.sum())} such families): joined and made again, each "
+                      "family's triangles take one member's tag and data", stacklevel=4)
 
 
 def inherited(before: Mesh, after: Mesh, rows: NDArray[np.int64]) -> Mesh:
