@@ -649,3 +649,43 @@ def test_a_msh40_file_without_its_sections_says_which(tmp_path, body, missing):
     path = tmp_path / "m.msh"
     path.write_text("$MeshFormat\n4 0 8\n$EndMeshFormat\n" + body)
     _refused(path, f"no ${missing} section")
+
+
+def test_check_reports_a_history_that_reading_refuses(tmp_path):
+    """A history row out of range: every command refused the file ("transitions: each row
+    is a vertex row or all -1") while ``qdrefine check`` called it usable (review)."""
+    from qdrefine.io import check_file
+
+    base = examples.plate_with_hole()
+    local = qdrefine.refine(base, marked=[0, 1])
+    rows = local.transitions.copy()
+    rows[np.flatnonzero(rows[:, 0] >= 0)[0], 1] = 99999
+    path = tmp_path / "m.vtu"
+    qdrefine.write(path, local)
+    good = check_file(path)[1]
+    assert good.ok
+    qdrefine.write(path, local.replace(transitions=None).replace(
+        cell_data={"qdrefine:transitionz": rows}))  # a name of the same length, renamed
+    data = path.read_bytes().replace(b"qdrefine:transitionz", b"qdrefine:transitions")
+    path.write_bytes(data)
+    with pytest.raises(ValueError, match="transitions: each row is a vertex row or all -1"):
+        qdrefine.read(path)
+    found = check_file(path)[1]
+    assert not found.ok
+    assert [p.kind for p in found.problems if p.severity == "error"] == ["data"]
+
+
+@pytest.mark.parametrize("value", [1e300, 2.0**63, 2**63])
+def test_a_history_value_beyond_int64_is_refused_without_a_cast_warning(tmp_path, value):
+    """1e300 in a history row printed NumPy's "invalid value encountered in cast" beside the
+    refusal (review)."""
+    from qdrefine.io._core import RawMesh, split_data
+
+    raw = RawMesh(tmp_path / "m.msh", np.zeros((3, 2)), np.array([[0, 1, 2]]))
+    rows = np.array([[0, 1, value]], dtype=np.float64 if isinstance(value, float) else
+                    np.uint64)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match="'qdrefine:transitions' must be 3 integers per "
+                                             "triangle"):
+            split_data(raw, {}, {"qdrefine:transitions": rows})

@@ -43,6 +43,8 @@ KINDS: dict[str, tuple[str, str]] = {
     "edge-tags": ("error", "tagged edges are not (K, 2) vertex indices with one integer tag "
                            "each"),
     "edge-not-in-mesh": ("error", "a tagged edge is not an edge of any triangle"),
+    "data": ("error", "point or cell data, physical names or the refinement history do not "
+                      "fit the mesh (reading refuses the file)"),
     "near-hanging-node": ("warning", "a boundary vertex off another triangle's boundary edge "
                                      "by less than 1e-12 times its length, outside it (a "
                                      "crack; inside it would be an overlap)"),

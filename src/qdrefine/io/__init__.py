@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..check import MIN_ANGLE, Checked, find
+from ..check import MIN_ANGLE, Checked, Problem, find
 from ..memory import check_needed, reading_needed_for_bytes
 from ..mesh import Mesh, _data, _names, history_rows, need_mesh
 from . import gmsh, obj, triangle, vtu, xdmf
@@ -194,6 +194,15 @@ def mesh_of(raw: RawMesh) -> Mesh:
             raise ValueError(problem.message)
         if problem.kind == "clockwise":
             warnings.warn(problem.message, stacklevel=3)
+    point_data, cell_data, names, transitions, origins = _data_of(raw, found)
+    return Mesh._trusted(found.points, found.triangles, found.cell_tags, found.edges,
+                         found.edge_tags, point_data, cell_data, names, transitions,
+                         buckets=found.buckets, origins=origins)
+
+
+def _data_of(raw: RawMesh, found: Checked) -> tuple:
+    """The point data, cell data, physical names, transitions and origins of ``raw``,
+    checked against the mesh ``found`` in it; ``ValueError`` naming the file otherwise."""
     n, m = found.points.shape[0], found.triangles.shape[0]
     try:
         point_data = _data(raw.point_data, n, "point_data", "points")
@@ -204,9 +213,7 @@ def mesh_of(raw: RawMesh) -> Mesh:
                                             raw.origins, flip=True)
     except ValueError as exc:
         raise ValueError(f"{raw.path}: {exc}") from None
-    return Mesh._trusted(found.points, found.triangles, found.cell_tags, found.edges,
-                         found.edge_tags, point_data, cell_data, names, transitions,
-                         buckets=found.buckets, origins=origins)
+    return point_data, cell_data, names, transitions, origins
 
 
 def check_file(path: PathLike, min_angle: float = MIN_ANGLE) -> tuple[RawMesh, Checked]:
@@ -224,6 +231,11 @@ def check_file(path: PathLike, min_angle: float = MIN_ANGLE) -> tuple[RawMesh, C
     seen = {p.kind for p in raw.problems}
     found.problems[:] = raw.problems + [raw.locate(p) for p in found.problems
                                         if p.kind not in seen]
+    if found.ok:  # what read checks next: a file "usable" here was refused (review)
+        try:
+            _data_of(raw, found)
+        except ValueError as exc:
+            found.problems.append(Problem("data", str(exc)))
     return raw, found
 
 

@@ -206,8 +206,11 @@ def split_data(raw: RawMesh, point_data: Mapping[str, NDArray],
     for name, value in cell_data.items():
         if name in (TRANSITIONS, ORIGINS):
             t = np.asarray(value)
-            if t.ndim != 2 or t.shape[1] != 3 or (t.dtype.kind == "f" and
-                                                  not (np.round(t) == t).all()):
+            # integral and within int64's range (a cast of 1e300 said "invalid value
+            # encountered in cast" beside the refusal; review)
+            if t.ndim != 2 or t.shape[1] != 3 or (t.dtype.kind == "f" and not (
+                    (np.round(t) == t) & (np.abs(t) < 2.0**63)).all()) or (
+                    t.dtype.kind == "u" and t.size and t.max() > np.iinfo(np.int64).max):
                 raise ValueError(f"{raw.path}: cell data {name!r} must be 3 integers per "
                                  "triangle")
             setattr(raw, "transitions" if name == TRANSITIONS else "origins",
