@@ -120,8 +120,10 @@ def history_mismatch(path: str, scheme: str, exc: HistoryMismatch) -> ValueError
     """One line for a file whose refinement history does not fit ``scheme``
     (:class:`qdrefine.adaptive.HistoryMismatch` ``exc``), in the command line's terms."""
     return ValueError(f"{path}: its refinement history (cell data qdrefine:transitions) does "
-                      f"not fit scheme {scheme}: {exc.detail}; refine and coarsen it with the "
-                      "scheme it was refined with")
+                      f"not fit scheme {scheme}: {exc.detail} (rows and points counted from 0); "
+                      "refine and coarsen it with the scheme it was refined with, or, if its "
+                      "points or triangles were changed since (a text format that rounds "
+                      "them), refine it uniformly (--levels), which does not use the history")
 
 
 def scheme_name(text: str) -> str:
