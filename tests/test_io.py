@@ -356,6 +356,17 @@ def test_triangle_vertex_attributes_are_point_data(tmp_path, n_attr):
         qdrefine.write(tmp_path / "b.node", m)
 
 
+def test_a_triangle_attribute_count_beyond_its_lines_is_refused_before_allocating(tmp_path):
+    """10**12 attributes per vertex in the header would have allocated them for each vertex
+    before reading a line (review of the attributes' reading)."""
+    (tmp_path / "h.node").write_text("4 2 1000000000000 0\n1 0 0 5\n2 1 0 7\n3 1 1 9\n"
+                                     "4 0 1 11\n")
+    (tmp_path / "h.ele").write_text("2 3 0\n1 1 2 3\n2 1 3 4\n")
+    with pytest.raises(ValueError, match=r"h.node:2: the header announces 1000000000000 "
+                                         "attributes per vertex, vertex 1 has 1"):
+        qdrefine.read(tmp_path / "h.node")
+
+
 def test_triangle_without_poly_has_no_edges(tmp_path):
     (tmp_path / "sq.node").write_text(NODE)
     (tmp_path / "sq.ele").write_text(ELE)

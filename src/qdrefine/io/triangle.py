@@ -208,6 +208,9 @@ def _read_node(nodes: _Lines) -> tuple[NDArray, int, NDArray, NDArray | None]:
     if dim != 2:
         raise nodes.error(f"dimension must be 2, got {dim}", nodes.rows[0][0])
     points = np.empty((n, 2))
+    if n and n_attr > 0 and 3 + n_attr > len(nodes.rows[nodes.pos][1]):  # before allocating
+        raise nodes.error(f"the header announces {n_attr} attributes per vertex, vertex 1 "
+                          f"has {len(nodes.rows[nodes.pos][1]) - 3}", nodes.rows[nodes.pos][0])
     attributes = np.empty((n, n_attr)) if n_attr > 0 else None
     lines = np.empty(n, dtype=np.int64)
     first = None
