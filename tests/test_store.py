@@ -740,3 +740,22 @@ def test_a_chunk_size_beyond_the_largest_is_refused(tmp_path, capsys):
                  "--chunk-size", str(2**32)]) == 1
     assert "chunk_size must be at most 16777216 rows" in capsys.readouterr().err
     assert not (tmp_path / "m.zarr").exists()
+
+
+def test_a_url_whose_filesystem_is_not_installed_is_one_line(tmp_path, monkeypatch, capsys):
+    """``gs://`` without gcsfs: fsspec's ImportError ended the command in a traceback (final
+    read of the session's diff, where the new overlap check met it first)."""
+    import importlib
+
+    registry = importlib.import_module("fsspec.registry")  # fsspec.registry is a mapping
+    monkeypatch.setitem(registry.known_implementations, "qdnone",
+                        {"class": "qd_missing_module.FileSystem",
+                         "err": "Please install qd-missing to access qdnone"})
+    with pytest.raises(ValueError, match="^qdnone://b/x.zarr: Please install qd-missing"):
+        store.open("qdnone://b/x.zarr")
+    for argv in (["convert", "qdnone://b/in.zarr", str(tmp_path / "out.msh")],
+                 ["convert", str(tmp_path / "in.msh"), "qdnone://b/out.zarr"]):
+        assert main(argv) == 1
+        err = capsys.readouterr().err
+        assert err.startswith("qdrefine: error: qdnone://b/") and "Please install qd-missing" \
+            in err and err.count("\n") == 1, err

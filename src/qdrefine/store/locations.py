@@ -50,7 +50,10 @@ def filesystem(url: str):
     if "::" in url and outer in _STORAGE:  # memory://b/a::b.zarr: not a chain's start
         raise ValueError(f"{url}: a store name cannot contain '::' (fsspec reads it as URL "
                          "chaining and would write elsewhere); rename it")
-    fs, root = fsspec.core.url_to_fs(url)
+    try:
+        fs, root = fsspec.core.url_to_fs(url)
+    except ImportError as exc:  # gs:// without gcsfs: fsspec says which package (a traceback)
+        raise ValueError(f"{url}: {exc}") from None
     fs.invalidate_cache()
     return fs, root
 
