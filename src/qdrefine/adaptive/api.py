@@ -17,6 +17,7 @@ from ..memory import check_needed, local_memory_needed
 from ..mesh import Mesh
 from ..schemes import Scheme, get_scheme
 from ..uniform import check_rounding, too_close
+from .edgekeys import edge_keys
 from .families import Families
 from .history import families_of, with_history
 from .output import changed_parents, split_tagged, without_points
@@ -274,11 +275,8 @@ def _refuse_lost_tagged_edges(before: Mesh, mesh: Mesh, edges: NDArray[np.int64]
     lost = ~keep[ends].all(axis=1)
     near = np.zeros(mesh.n_points, dtype=bool)
     near[ends.reshape(-1)] = True
-    t = mesh.triangles[near[mesh.triangles].sum(axis=1) >= 2].astype(np.int64)
-    sides = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
-    key = mesh.n_points
-    lo, hi = np.sort(ends, axis=1).T
-    lost |= ~np.isin(lo * key + hi, sides[:, 0] * key + sides[:, 1])
+    t = mesh.triangles[near[mesh.triangles].sum(axis=1) >= 2]
+    lost |= ~np.isin(edge_keys(ends[:, 0], ends[:, 1]), edge_keys(t, np.roll(t, -1, axis=1)))
     if lost.any():
         a, b = (int(v) for v in ends[np.argmax(lost)])
         raise ValueError(f"cannot refine: tagged edge ({a}, {b}) lies between two triangles "
