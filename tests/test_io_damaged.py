@@ -689,3 +689,47 @@ def test_a_history_value_beyond_int64_is_refused_without_a_cast_warning(tmp_path
         with pytest.raises(ValueError, match="'qdrefine:transitions' must be 3 integers per "
                                              "triangle"):
             split_data(raw, {}, {"qdrefine:transitions": rows})
+
+
+def test_a_big_endian_base64_vtu_is_bounded_by_its_own_offsets(tmp_path):
+    """The check before meshio read a big-endian file's offsets in little-endian order, so
+    its connectivity's bound was 3 * 2**56 instead of 3 entries (final read): a block of
+    64 MiB behind it was decompressed. Bounded by the offsets as the file gives them."""
+    import base64
+    import tracemalloc
+    import zlib
+
+    def block(raw: bytes) -> str:
+        body = zlib.compress(raw)
+        return (base64.b64encode(struct.pack(">4Q", 1, len(raw), len(raw), len(body)))
+                + base64.b64encode(body)).decode()
+
+    def item(kind: str, name: str, raw: bytes, comps: int = 1) -> str:
+        return (f'<DataArray type="{kind}" Name="{name}" NumberOfComponents="{comps}" '
+                f'format="binary">{block(raw)}</DataArray>\n')
+
+    points = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], ">f8").tobytes()
+
+    def vtu(connectivity: bytes) -> str:
+        return ('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
+                'byte_order="BigEndian" header_type="UInt64" '
+                'compressor="vtkZLibDataCompressor">\n<UnstructuredGrid>\n'
+                '<Piece NumberOfPoints="3" NumberOfCells="1">\n<Points>\n'
+                + item("Float64", "Points", points, 3) + "</Points>\n<Cells>\n"
+                + item("Int64", "connectivity", connectivity)
+                + item("Int64", "offsets", np.array([3], ">i8").tobytes())
+                + item("UInt8", "types", bytes([5]))
+                + "</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n")
+
+    (tmp_path / "ok.vtu").write_text(vtu(np.array([0, 1, 2], ">i8").tobytes()))
+    assert qdrefine.read(tmp_path / "ok.vtu").triangles.tolist() == [[0, 1, 2]]
+    (tmp_path / "big.vtu").write_text(vtu(bytes(1 << 26)))
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match="DataArray 'connectivity' decompresses to more "
+                                             "than the 24 bytes its rows take"):
+            qdrefine.read(tmp_path / "big.vtu")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 16 << 20

@@ -15,8 +15,8 @@ import zlib
 
 import numpy as np
 
-__all__ = ["VTK_TYPES", "UNSIZED_LIMIT", "DECOMPRESSORS", "decompressed", "check_base64_blocks",
-           "components"]
+__all__ = ["VTK_TYPES", "UNSIZED_LIMIT", "DECOMPRESSORS", "BYTE_ORDERS", "byte_order",
+           "header_dtype", "decompressed", "check_base64_blocks", "components"]
 
 #: VTK data types and their NumPy dtypes.
 VTK_TYPES = {"Int8": "i1", "UInt8": "u1", "Int16": "<i2", "UInt16": "<u2", "Int32": "<i4",
@@ -25,6 +25,25 @@ VTK_TYPES = {"Int8": "i1", "UInt8": "u1", "Int16": "<i2", "UInt16": "<u2", "Int3
 
 #: The most bytes a compressed array of unknown size (qdrefine's field data) may expand to.
 UNSIZED_LIMIT = 1 << 26
+
+#: VTK XML byte orders and NumPy's.
+BYTE_ORDERS = {"LittleEndian": "<", "BigEndian": ">"}
+
+
+def byte_order(root: ET.Element) -> str:
+    """NumPy's byte order (``<`` or ``>``) of the VTKFile element ``root``; ``ValueError``
+    for another."""
+    order = BYTE_ORDERS.get(root.get("byte_order", "LittleEndian"))
+    if order is None:
+        raise ValueError(f"unknown byte_order {root.get('byte_order')!r}")
+    return order
+
+
+def header_dtype(root: ET.Element, order: str) -> np.dtype:
+    """The dtype of the block headers of the VTKFile element ``root`` (``header_type``
+    UInt32 or UInt64), in byte order ``order``."""
+    return np.dtype("u8" if root.get("header_type") == "UInt64" else "u4").newbyteorder(order)
+
 
 #: VTK's compressors that the readers decompress: their streams (``decompress(data,
 #: max_length)``, ``eof``).
@@ -74,9 +93,8 @@ def check_base64_blocks(data: bytes) -> None:
     decompressor = DECOMPRESSORS.get(root.get("compressor", ""))
     if decompressor is None:
         return
-    header = np.dtype("<u8" if root.get("header_type") == "UInt64" else "<u4")
-    if root.get("byte_order", "LittleEndian") != "LittleEndian":
-        header = header.newbyteorder(">")
+    order = byte_order(root)
+    header = header_dtype(root, order)
     appended = root.find("AppendedData")
     tail = (appended.text or "").strip()[1:] if appended is not None else ""
     for piece in root.iter("Piece"):
@@ -101,8 +119,9 @@ def check_base64_blocks(data: bytes) -> None:
                     max(rows, 0) * components(item) * np.dtype(kind).itemsize
                 raw = _check_one(text, header, limit, f"DataArray {name!r}" if name else
                                  "an unnamed DataArray", decompressor)
-                if name == "offsets" and section.tag == "Cells":
-                    values = np.frombuffer(raw, kind, len(raw) // np.dtype(kind).itemsize)
+                if name == "offsets" and section.tag == "Cells":  # in the file's byte order
+                    values = np.frombuffer(raw, np.dtype(kind).newbyteorder(order),
+                                           len(raw) // np.dtype(kind).itemsize)
                     connectivity = int(values.max(initial=0))
     for item in root.iter("FieldData"):
         for array in item.iter("DataArray"):

@@ -34,9 +34,11 @@ from .vtk_blocks import (
     DECOMPRESSORS,
     UNSIZED_LIMIT,
     VTK_TYPES,
+    byte_order,
     check_base64_blocks,
     components,
     decompressed,
+    header_dtype,
 )
 from .xml_names import check_xml_names
 
@@ -50,8 +52,6 @@ _CELLS = {1: ("vertex", 1), 3: ("line", 2), 5: ("triangle", 3), 9: ("quad", 4),
           2: ("poly_vertex", 0), 4: ("polyline", 0), 6: ("triangle_strip", 0),
           7: ("polygon", 0), 8: ("pixel", 4), 11: ("voxel", 8)}
 _META = "qdrefine"
-#: VTK XML byte orders and NumPy's.
-_BYTE_ORDERS = {"LittleEndian": "<", "BigEndian": ">"}
 _CHUNK = 1 << 20  # bytes per compressed block
 
 
@@ -100,10 +100,8 @@ def _read(path: Path, data: bytes) -> RawMesh:
     root = ET.fromstring(data[:start] + b"</VTKFile>")
     if root.tag != "VTKFile" or root.get("type") != "UnstructuredGrid":
         raise ValueError("not a VTKFile of type UnstructuredGrid")
-    order = _BYTE_ORDERS.get(root.get("byte_order", "LittleEndian"))
-    if order is None:
-        raise ValueError(f"unknown byte_order {root.get('byte_order')!r}")
-    header = np.dtype("u8" if root.get("header_type") == "UInt64" else "u4").newbyteorder(order)
+    order = byte_order(root)
+    header = header_dtype(root, order)
     compressor = root.get("compressor")
     if compressor is not None and compressor not in DECOMPRESSORS:
         raise _Fallback
