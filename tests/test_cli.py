@@ -613,3 +613,27 @@ def test_counts_of_one_are_singular(tmp_path, run):
         run("check", path).stdout
     info = run("info", path).stdout
     assert "3: 1 triangle, area 0.5" in info and "4: 1 edge, length 1" in info
+
+
+@pytest.mark.parametrize("arguments", [["--version"], ["info", "--help"]])
+def test_help_and_version_that_cannot_be_written_are_errors(arguments):
+    """``qdrefine --version >&-`` and ``--help > /dev/full`` exited 0 with the text lost
+    (argparse ignores write errors); a closed pipe stays no error."""
+    command = [sys.executable, "-m", "qdrefine", *arguments]
+    closed = subprocess.run(["sh", "-c", 'exec "$@" >&-', "sh", *command],
+                            capture_output=True, text=True, timeout=300)
+    assert closed.returncode == 1
+    assert closed.stderr == "qdrefine: error: [Errno 9] Bad file descriptor: 'standard output'\n"
+    if Path("/dev/full").exists():
+        with open("/dev/full", "w") as full:
+            lost = subprocess.run(command, stdout=full, stderr=subprocess.PIPE, text=True,
+                                  timeout=300)
+        assert lost.returncode == 1 and "No space left on device: 'standard output'" in lost.stderr
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        piped = subprocess.run(command, stdout=write, stderr=subprocess.PIPE, text=True,
+                               timeout=300)
+    finally:
+        os.close(write)
+    assert piped.returncode == 0 and piped.stderr == ""

@@ -73,8 +73,14 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("qdrefine: interrupted", file=sys.stderr)
         return 130
-    args, extra = parser.parse_known_args(
-        _joined_negative_values(sys.argv[1:] if argv is None else argv))
+    try:
+        args, extra = _parsed(parser, sys.argv[1:] if argv is None else argv)
+    except BrokenPipeError:  # 'qdrefine --help | head -1'
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except OSError as exc:  # '--help > /dev/full', '--version >&-': the text was lost
+        print(f"qdrefine: error: {_one_line(exc)}", file=sys.stderr)
+        return 1
     if extra:  # said by the command's parser: one line, with its --help
         (getattr(args, "parser", None) or parser).error(
             f"unrecognized arguments: {' '.join(extra)}")
@@ -112,6 +118,23 @@ def main(argv: list[str] | None = None) -> int:
         terminated = str(exc) == TERMINATED
         print(f"qdrefine: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
         return 143 if terminated else 130
+
+
+def _parsed(parser: argparse.ArgumentParser,
+            argv: list[str]) -> tuple[argparse.Namespace, list[str]]:
+    """``parser.parse_known_args(argv)``; the text of ``--help`` and ``--version`` that
+    could not be written raises :class:`OSError` naming standard output (argparse ignores
+    write errors, so it was lost with exit 0)."""
+    stream = _NamedStream(_Closed() if sys.stdout is None else sys.stdout, "standard output")
+    try:
+        with contextlib.redirect_stdout(stream):
+            return parser.parse_known_args(_joined_negative_values(argv))
+    except SystemExit as exit_:
+        if exit_.code == 0:  # after --help or --version: was the text written?
+            stream.flush()
+            if stream.failed is not None:
+                raise stream.failed from None
+        raise
 
 
 def _refuse_empty_values(args: argparse.Namespace) -> None:
@@ -155,6 +178,8 @@ class _NamedStream:
 
     def __init__(self, stream: TextIO, name: str) -> None:
         self._stream, self._name = stream, name
+        #: The first write error, kept for callers that swallow it (argparse's help).
+        self.failed: OSError | None = None
 
     def write(self, text: str) -> int:
         try:
@@ -171,6 +196,8 @@ class _NamedStream:
     def _named(self, exc: OSError) -> OSError:
         if exc.filename is None and not isinstance(exc, BrokenPipeError):
             exc.filename = self._name
+        if self.failed is None:
+            self.failed = exc
         return exc
 
     def __getattr__(self, name: str) -> Any:
