@@ -609,6 +609,26 @@ def test_the_same_store_spelled_otherwise_is_the_same_place(tmp_path):
     assert canonical(location("memory:///b/x.zarr")) == canonical(location("memory://b/x.zarr"))
 
 
+def test_local_paths_are_split_and_compared_by_the_platform_separators(monkeypatch):
+    """Temporaries' names and the input/output overlap check cut local paths at '/':
+    a Windows path (``C:\\data\\out.zarr``) had no parent, so its temporary went to
+    ``/.C:...``, and an output inside the input was not seen. Checked with ``ntpath``."""
+    import ntpath
+    import types
+
+    from qdrefine.store import lifecycle, locations
+
+    monkeypatch.setattr(locations, "os", types.SimpleNamespace(path=ntpath, fspath=os.fspath))
+    assert locations.split(r"C:\data\out.zarr") == ("C:\\data", "out.zarr")
+    assert locations.join("C:\\data", "x.zarr") == r"C:\data\x.zarr"
+    assert locations.split("memory://a/b.zarr") == ("memory://a", "b.zarr")
+    assert "inside the input" in locations.overlap(r"C:\d\in.zarr\o.zarr", r"C:\d\in.zarr")
+    assert "is inside the output" in locations.overlap(r"C:\d\o.zarr", r"C:\d\o.zarr\i")
+    assert locations.overlap(r"C:\d\in.zarr2", r"C:\d\in.zarr") is None
+    temporary = lifecycle.temporary(r"C:\data\out.zarr", ".tmp")
+    assert temporary.startswith("C:\\data\\.out.zarr~") and temporary.endswith(".tmp")
+
+
 @pytest.mark.parametrize("damage, message", [
     ("truncate", "array 'triangles' rows .* cannot be read"),
     ("metadata list", "metadata is not a mapping"),

@@ -82,18 +82,29 @@ def overlap(target: str, source: str, words: tuple[str, str] = ("output", "input
     here, there = canonical(target), canonical(location(source))
     if here == there:
         return f"the {out} would overwrite the {src}"
-    if here.startswith(there.rstrip("/") + "/"):
+    if _inside(here, there):
         return f"the {out} would be inside the {src} {source}"
-    if there.startswith(here.rstrip("/") + "/"):
+    if _inside(there, here):
         return f"the {src} {source} is inside the {out}, which writing replaces as a whole"
     return None
 
 
+def _inside(url: str, folder: str) -> bool:
+    """Whether canonical ``url`` lies below canonical ``folder`` (a local path by the
+    platform's separators, ``C:\\a\\b`` on Windows)."""
+    if is_local(url) and is_local(folder):
+        return url.startswith(os.path.join(folder, ""))
+    return url.startswith(folder.rstrip("/") + "/")
+
+
 def join(url: str, name: str) -> str:
-    return f"{url}/{name}"
+    """``name`` in the folder ``url`` (from :func:`location`)."""
+    return os.path.join(url, name) if is_local(url) else f"{url}/{name}"
 
 
 def split(url: str) -> tuple[str, str]:
-    """``(parent URL, name)``."""
+    """``(parent URL, name)`` of ``url`` (from :func:`location`)."""
+    if is_local(url):
+        return os.path.split(url)
     parent, _, name = url.rpartition("/")
     return parent, name
