@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from .adaptive import as_mask
 from .adaptive.api import is_integer_mask
 from .mesh import Mesh
+from .predicates import orient_signs
 
 __all__ = ["mark_ids", "mark_mask", "mark_tag", "mark_region", "mark_box", "mark_point",
            "mark_circle", "mark_random", "mark_dorfler", "mark_maximum", "mark_file"]
@@ -169,10 +170,13 @@ def mark_region(mesh: Mesh, inside: Callable[[NDArray[np.float64]], ArrayLike]
 
 
 def mark_box(mesh: Mesh, box: ArrayLike) -> NDArray[np.bool_]:
-    """Triangles that intersect (touch or overlap) the closed box ``(x0, y0, x1, y1)``.
+    """Triangles that intersect (touch or overlap) the closed box ``(x0, y0, x1, y1)``,
+    decided exactly on the float coordinates.
 
-    Exact separating-axis test on the float coordinates up to rounding of the projections:
-    the box's two axes and the three edge normals of each triangle.
+    Separating-axis test: the box's two axes (float comparisons, exact) and the three edge
+    lines of each triangle, where the box is apart iff its four corners lie strictly
+    outside one edge, by the exact orientation predicate (a float test of that side
+    missed triangles that hold a point box a few ulps inside them).
     """
     b = np.asarray(box, dtype=np.float64)
     if b.shape != (4,) or not np.isfinite(b).all() or b[0] > b[2] or b[1] > b[3]:
@@ -180,13 +184,19 @@ def mark_box(mesh: Mesh, box: ArrayLike) -> NDArray[np.bool_]:
     p = mesh.points[mesh.triangles]  # (M, 3, 2)
     hit = ((p[..., 0].max(1) >= b[0]) & (p[..., 0].min(1) <= b[2])
            & (p[..., 1].max(1) >= b[1]) & (p[..., 1].min(1) <= b[3]))
+    rows = np.flatnonzero(hit)
     corners = np.array([[b[0], b[1]], [b[2], b[1]], [b[2], b[3]], [b[0], b[3]]])
-    for i in range(3):
-        a, c = p[:, i], p[:, (i + 1) % 3]
-        normal = np.stack([c[:, 1] - a[:, 1], a[:, 0] - c[:, 0]], axis=1)  # outward (CCW)
-        # the box is separated iff all four corners lie strictly outside this edge
-        d = np.einsum("mkj,mj->mk", corners[None, :, :] - a[:, None, :], normal)
-        hit &= ~(d > 0).all(axis=1)
+    n = mesh.n_points
+    points = np.concatenate([mesh.points, corners])
+    t = mesh.triangles[rows]
+    for i in range(3):  # edge (a, c) of each counter-clockwise triangle: inside is left
+        a, c = t[:, i], t[:, (i + 1) % 3]
+        outside = np.ones(rows.size, dtype=np.bool_)
+        for k in range(4):
+            corner = np.full(rows.size, n + k, dtype=t.dtype)
+            sides = orient_signs(points, np.stack([a, c, corner], axis=1))
+            outside &= sides < 0
+        hit[rows[outside]] = False
     return hit
 
 
@@ -226,8 +236,11 @@ def mark_dorfler(indicator: ArrayLike, theta: float) -> NDArray[np.bool_]:
     """Dörfler (bulk) marking: a smallest set of triangles holding a ``theta`` share of the
     total of a non-negative ``indicator (M,)`` (e.g. squared local error estimates).
 
-    The largest values are taken first (ties by triangle index), until their sum reaches
-    ``theta * sum(indicator)``; ``0 < theta <= 1``.
+    The largest values are taken first, until their sum reaches ``theta *
+    sum(indicator)``; ``0 < theta <= 1``. Every triangle whose value equals the last one
+    taken is marked too, so that the marks do not depend on the triangle order (a
+    symmetric mesh has equal values in mirrored triangles); the set is then the smallest
+    that holds the share and all of each value it takes.
 
     Examples
     --------
@@ -250,8 +263,8 @@ def mark_dorfler(indicator: ArrayLike, theta: float) -> NDArray[np.bool_]:
     # against the cumulative sum's own total: eta.sum() rounds otherwise, and theta = 1
     # took a zero too (review)
     count = int(np.searchsorted(csum, theta * csum[-1], side="left")) + 1
-    mask[order[: min(count, eta.shape[0])]] = True
-    return mask
+    last = eta[order[min(count, eta.shape[0]) - 1]]  # the smallest value taken
+    return eta >= last  # its ties too (scaling by a power of two kept every equality)
 
 
 def mark_maximum(indicator: ArrayLike, theta: float) -> NDArray[np.bool_]:
