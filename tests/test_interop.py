@@ -130,6 +130,18 @@ def test_tags_of_one_physical_name_are_one_skfem_set():
     assert len(m.boundaries["wall"]) == 2
 
 
+def test_untagged_triangles_and_edges_make_no_skfem_set():
+    """Cell tag 0 ("untagged") became a subdomain 'tag 0', so from_skfem tagged those
+    triangles (review); edge tag 0 made a boundary 'tag 0'."""
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    mesh = Mesh(points, [[0, 1, 2], [0, 2, 3]], cell_tags=[0, 5], edges=[[0, 1], [1, 2]],
+                edge_tags=[0, 3])
+    m = interop.to_skfem(mesh)
+    assert list(m.subdomains) == ["tag 5"] and list(m.boundaries) == ["tag 3"]
+    back = interop.from_skfem(m)
+    assert back.cell_tags.tolist() == [0, 1] and back.edge_tags.tolist() == [1]
+
+
 def test_a_physical_name_meshio_cannot_hold_is_refused():
     """meshio's field_data maps a name to one group: one of two groups of one name was
     lost without a word (review)."""

@@ -62,7 +62,8 @@ def from_meshio(m) -> Mesh:
 def to_skfem(mesh: Mesh):
     """``mesh`` as a ``skfem.MeshTri`` with the same point and triangle numbering (triangle
     rows are not sorted), tagged edges as boundaries and cell tags as subdomains, each named
-    by its physical name or ``"tag <n>"``."""
+    by its physical name or ``"tag <n>"``; tag 0 ("untagged") makes neither, so that
+    :func:`from_skfem` gives those triangles tag 0 again."""
     import skfem
 
     m = skfem.MeshTri(np.ascontiguousarray(mesh.points.T, dtype=np.float64),
@@ -72,12 +73,12 @@ def to_skfem(mesh: Mesh):
     subdomains: dict[str, NDArray] = {}
     if mesh.edges is not None and len(mesh.edges):
         facets = _facet_ids(m.facets.T, np.asarray(mesh.edges), mesh.n_points)
-        for tag in np.unique(mesh.edge_tags):  # tags of one name: one boundary, all of them
+        for tag in np.unique(mesh.edge_tags[mesh.edge_tags != 0]):  # one name: one boundary
             name = names.get((1, int(tag)), f"tag {tag}")
             boundaries[name] = np.unique(np.concatenate(
                 [boundaries.get(name, facets[:0]), facets[mesh.edge_tags == tag]]))
     if mesh.cell_tags is not None:
-        for tag in np.unique(mesh.cell_tags):
+        for tag in np.unique(mesh.cell_tags[mesh.cell_tags != 0]):
             name = names.get((2, int(tag)), f"tag {tag}")
             subdomains[name] = np.union1d(subdomains.get(name, []),
                                           np.flatnonzero(mesh.cell_tags == tag)).astype(np.int64)
