@@ -258,3 +258,13 @@ def test_centroids_do_not_depend_on_the_vertex_order():
     fraction = float(np.sort(u - np.floor(u))[len(u) // 2])  # a threshold on a triangle
     assert np.array_equal(marking.mark_random(mesh, fraction),
                           marking.mark_random(rotated, fraction))
+
+
+def test_a_mark_file_with_a_byte_order_mark_and_a_tag_beyond_int64(tmp_path):
+    """A mark file saved with a UTF-8 byte-order mark (Windows Notepad) was refused as
+    "'\\ufeff1' is not a triangle id"; the tag 2**64 - 1 was named -1 (review)."""
+    path = tmp_path / "ids.txt"
+    path.write_text("1 2\n", encoding="utf-8-sig")
+    assert marking.mark_file(examples.square(2), path).nonzero()[0].tolist() == [1, 2]
+    with pytest.raises(ValueError, match="no triangle has cell tag 18446744073709551615"):
+        mark_tag(examples.plate_with_hole(8, 2), np.uint64(2**64 - 1))

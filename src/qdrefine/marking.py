@@ -55,6 +55,9 @@ def mark_tag(mesh: Mesh, tags: int | ArrayLike) -> NDArray[np.bool_]:
     given = np.atleast_1d(np.asarray(tags))
     if given.size and given.dtype.kind not in "iu":  # 1.7 marked tag 1
         raise ValueError(f"cell tags are integers, got {tags!r}")
+    if given.size and given.dtype.kind == "u" and int(given.max()) > np.iinfo(np.int64).max:
+        raise ValueError(f"no triangle has cell tag {int(given.max())} (cell tags are "
+                         "64-bit signed integers)")  # the cast named it -1
     wanted = given.astype(np.int64)
     present = np.unique(mesh.cell_tags)
     missing = np.setdiff1d(wanted, present)
@@ -95,7 +98,7 @@ def mark_file(mesh: Mesh, path: str | PathLike[str]) -> NDArray[np.bool_]:
     n = mesh.n_triangles
     ids = []
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark (Notepad) too
     except UnicodeDecodeError:
         raise ValueError(f"{path}: not a text file of triangle ids (or a .npy file)") from None
     for line, content in enumerate(text.splitlines(), start=1):
