@@ -189,3 +189,29 @@ def test_similarity_classes_chain_past_the_tolerance():
     smallest = np.sort(quality.angles(mesh), axis=1)[:, 0]
     assert np.unique(labels).size == 1
     assert np.ptp(smallest) > 100 * 1e-6  # 1.4e-4 degrees
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_figures_do_not_depend_on_the_numbering_or_the_first_vertex(seed):
+    """The area, radius and aspect ratios of a triangle changed in their last bit with the
+    vertex its row starts at, and the reports' sums and means with the triangle order
+    (review: info's area, quality's mean radius ratio, compare's mean minimum angle)."""
+    from qdrefine import report
+
+    mesh = refine(examples.plate_with_hole(12, 3), "7t-qd")
+    rng = np.random.default_rng(seed)
+    points = rng.permutation(mesh.n_points)
+    renumber = np.argsort(points)
+    rows = rng.permutation(mesh.n_triangles)
+    turns = rng.integers(0, 3, mesh.n_triangles)
+    triangles = renumber[mesh.triangles[rows]]
+    triangles = triangles[np.arange(len(rows))[:, None], (turns[:, None] + np.arange(3)) % 3]
+    other = Mesh(mesh.points[points], triangles, cell_tags=mesh.cell_tags[rows],
+                 edges=renumber[mesh.edges], edge_tags=mesh.edge_tags,
+                 physical_names=mesh.physical_names)
+    for measure in (quality.areas, quality.radius_ratios, quality.aspect_ratios):
+        assert np.array_equal(measure(mesh)[rows], measure(other)), measure.__name__
+    assert report.info(mesh) == report.info(other)
+    assert report.quality(mesh) == report.quality(other)
+    assert report.compare(mesh, ["7t-qd"], 1) == report.compare(other, ["7t-qd"], 1)

@@ -72,10 +72,26 @@ def _arrays(mesh: Mesh | ArrayLike, triangles: ArrayLike | None) -> tuple[NDArra
 def _sides(p: NDArray, t: NDArray) -> tuple[NDArray, NDArray]:
     """Edge vectors ``(M, 3, 2)``: row ``i`` goes from vertex ``i`` to vertex ``i + 1``,
     and twice the signed area ``(M,)``."""
-    v = p[t]
+    return _corner_sides(p[t])
+
+
+def _corner_sides(v: NDArray) -> tuple[NDArray, NDArray]:
+    """:func:`_sides` of triangles given by their corners ``v (M, 3, 2)``."""
     e = np.roll(v, -1, axis=1) - v
     cross = e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0]
     return e, cross
+
+
+def _canonical_sides(p: NDArray, t: NDArray) -> tuple[NDArray, NDArray]:
+    """:func:`_sides` of each triangle rotated to start at its lowest corner (smallest x,
+    then y): values computed from them round the same whatever vertex a row starts with
+    and however the points are numbered (the area of one triangle differed in its last
+    bit between the rotations ``(a, b, c)`` and ``(b, c, a)``)."""
+    v = p[t]
+    x = v[..., 0]
+    y = np.where(x == x.min(axis=1, keepdims=True), v[..., 1], np.inf)
+    first = np.argmin(y, axis=1)  # distinct corners: one lowest (equal ones: any, equal)
+    return _corner_sides(v[np.arange(len(v))[:, None], (first[:, None] + np.arange(3)) % 3])
 
 
 def angles(mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None) -> NDArray[np.float64]:
@@ -117,7 +133,7 @@ def max_angles(mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None) -> ND
 def areas(mesh: Mesh | ArrayLike, triangles: ArrayLike | None = None) -> NDArray[np.float64]:
     """Signed area ``(M,)`` of each triangle (positive for counter-clockwise)."""
     p, t = _arrays(mesh, triangles)
-    return 0.5 * _sides(p, t)[1]
+    return 0.5 * _canonical_sides(p, t)[1]
 
 
 def edge_lengths(mesh: Mesh | ArrayLike,
@@ -136,7 +152,7 @@ def radius_ratios(mesh: Mesh | ArrayLike,
     ``A``, ``2 r / R = 16 A^2 / ((a + b + c) a b c)``.
     """
     p, t = _arrays(mesh, triangles)
-    e, _ = _sides(p, t)
+    e, _ = _canonical_sides(p, t)
     # in units of the longest side, so that neither 4 cross^2 (size^4) nor the product of
     # the lengths underflows or overflows anywhere in the coordinate range (a triangle of
     # size 1e-81 gave 0, of size 1e90 NaN)
@@ -155,7 +171,7 @@ def aspect_ratios(mesh: Mesh | ArrayLike,
     """Aspect ratio ``(M,)``: longest side over smallest altitude, scaled so that an
     equilateral triangle has 1 (``sqrt(3) l_max^2 / (4 A)``); grows without bound."""
     p, t = _arrays(mesh, triangles)
-    e, cross = _sides(p, t)
+    e, cross = _canonical_sides(p, t)
     lmax2 = (e**2).sum(axis=-1).max(axis=1)
     with np.errstate(divide="ignore"):
         return np.maximum(np.sqrt(3.0) * lmax2 / (2.0 * np.abs(cross)), 1.0)  # >= 1 exactly

@@ -14,6 +14,7 @@ triangles                 8
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
@@ -36,9 +37,28 @@ def counted(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
+def _sum(values: np.ndarray) -> float:
+    """The sum rounded once (``math.fsum``): the same in any order of the values, so a
+    report does not change when a mesh's triangles are numbered otherwise (NumPy's
+    pairwise sum changed in its last digits)."""
+    return math.fsum(values)
+
+
+def _mean(values: np.ndarray) -> float:
+    return _sum(values) / len(values) if len(values) else math.nan
+
+
+def _sums_by(groups: np.ndarray, values: np.ndarray, n: int) -> list[float]:
+    """:func:`_sum` of the ``values`` of each group ``0..n-1`` (``groups`` as
+    ``np.unique``'s inverse)."""
+    order = np.argsort(groups, kind="stable")
+    cuts = np.searchsorted(groups[order], np.arange(1, n))
+    return [_sum(part) for part in np.split(values[order], cuts)]
+
+
 def _stats(values: np.ndarray) -> dict[str, float]:
     return {"min": float(values.min()), "max": float(values.max()),
-            "mean": float(values.mean()), "median": float(np.median(values))}
+            "mean": _mean(values), "median": float(np.median(values))}
 
 
 def _apart(low: float, high: float) -> str:
@@ -67,7 +87,7 @@ def info(mesh: Mesh) -> dict[str, Any]:
         "euler_characteristic": euler_characteristic(mesh),
         "bounding_box": {"xmin": float(box[:, 0].min()), "ymin": float(box[:, 1].min()),
                          "xmax": float(box[:, 0].max()), "ymax": float(box[:, 1].max())},
-        "area": float(area.sum()),
+        "area": _sum(area),
         "counter_clockwise": bool((area > 0).all()),
         "conforming": conf.ok,
         "conformity": {"overused_edges": conf.overused_edges,
@@ -77,14 +97,14 @@ def info(mesh: Mesh) -> dict[str, Any]:
         "cell_tags": None,
         "edge_tags": None,
         "min_angle": {"min": float(mins.min()), "max": float(mins.max()),
-                      "mean": float(mins.mean())},
+                      "mean": _mean(mins)},
     }
     if mesh.cell_tags is not None:
         tags, inv = np.unique(np.asarray(mesh.cell_tags), return_inverse=True)
         inv = inv.reshape(-1)
         out["cell_tags"] = {
             str(int(t)): _named({"triangles": int(c), "area": float(a)}, mesh, 2, int(t))
-            for t, c, a in zip(tags, np.bincount(inv), np.bincount(inv, weights=area),
+            for t, c, a in zip(tags, np.bincount(inv), _sums_by(inv, area, len(tags)),
                                strict=True)}
     if mesh.edges is not None:
         tags, inv = np.unique(np.asarray(mesh.edge_tags), return_inverse=True)
@@ -93,7 +113,7 @@ def info(mesh: Mesh) -> dict[str, Any]:
         length = np.hypot(seg[:, 0], seg[:, 1])
         out["edge_tags"] = {
             str(int(t)): _named({"edges": int(c), "length": float(s)}, mesh, 1, int(t))
-            for t, c, s in zip(tags, np.bincount(inv), np.bincount(inv, weights=length),
+            for t, c, s in zip(tags, np.bincount(inv), _sums_by(inv, length, len(tags)),
                                strict=True)}
     return out
 
@@ -186,7 +206,7 @@ def compare(mesh: Mesh, schemes: Sequence[str] | None = None, levels: int = 2, *
             labels, _ = q.similarity_classes(fine, tolerance=tolerance)
             rows.append({"scheme": name, "level": level, "triangles": fine.n_triangles,
                          "points": fine.n_points, "min_angle": float(mins.min()),
-                         "mean_min_angle": float(mins.mean()),
+                         "mean_min_angle": _mean(mins),
                          "similarity_classes": int(labels.max()) + 1})
             if step is not None:
                 step(name, level)
