@@ -973,6 +973,41 @@ def test_an_output_that_would_replace_an_hdf5_file_the_input_names_is_refused(tm
     assert qdrefine.read("out.xdmf").n_triangles == 7
 
 
+@pytest.mark.parametrize("spelling", ["single quotes", "CDATA"])
+def test_heavy_data_items_are_found_however_the_xml_spells_them(tmp_path, monkeypatch,
+                                                               capsys, spelling):
+    """The heavy-data checks found data items by a regular expression that missed
+    ``Format='HDF'`` and ``<![CDATA[...]]>``, which meshio reads: ``refine in.xdmf
+    data.xdmf`` replaced the input's ``data.h5`` (exit 0), and a binary item naming a FIFO
+    hung (review)."""
+    from qdrefine.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    _xdmf_with_heavy_data_named(tmp_path, "data.h5")
+    xml = tmp_path / "in.xdmf"
+    text = xml.read_text()
+    if spelling == "single quotes":
+        text = text.replace('Format="HDF"', "Format='HDF'")
+    else:
+        text = text.replace(">data.h5:", "><![CDATA[data.h5:").replace(
+            "</DataItem>", "]]></DataItem>")
+    xml.write_text(text)
+    assert qdrefine.read(xml).n_triangles == 1  # meshio reads it
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert main(["refine", "in.xdmf", "data.xdmf"]) == 1
+    assert "share the heavy-data file data.h5" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+    os.mkfifo(tmp_path / "fifo.bin")
+    (tmp_path / "f.xdmf").write_text(
+        "<Xdmf Version='3.0'><Domain><Grid Name='m'><Geometry GeometryType='XY'><DataItem "
+        "DataType='Float' Precision='8' Dimensions='3 2' Format='XML'>0 0 1 0 0 1</DataItem>"
+        "</Geometry><Topology TopologyType='Triangle' NumberOfElements='1'><DataItem "
+        "DataType='Int' Precision='8' Dimensions='1 3' Format='Binary'>fifo.bin</DataItem>"
+        "</Topology></Grid></Domain></Xdmf>")
+    assert main(["info", "f.xdmf"]) == 1  # not a hang
+    assert "fifo.bin: not a regular file" in capsys.readouterr().err
+
+
 def test_an_xdmf_name_with_an_xml_entity_reads_back(tmp_path):
     """``a&b.xdmf`` names ``a&amp;b.h5`` in its XML: the heavy-data check looked for a file
     named ``a&amp;b.h5`` and refused the pair (review)."""

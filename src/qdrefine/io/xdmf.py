@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import errno
 import hashlib
-import html
 import io
 import os
 import re
 from pathlib import Path
+from xml.etree import ElementTree
 from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
@@ -48,22 +48,25 @@ def read(path: Path) -> RawMesh:
     return read_with_meshio(path, "xdmf", "XDMF")
 
 
-#: A heavy-data item: its attributes and its text ``FILE:/dataset`` (the file is everything
-#: before the last ``:/``: a Windows drive letter or spaces in the name included).
-_ITEM = re.compile(rb"<DataItem\b([^>]*)>([^<]*)</DataItem>")
-_ATTRIBUTE = re.compile(rb'(\w+)\s*=\s*"([^"]*)"')
-
-
 def _heavy_items(text: bytes, kind: str = "HDF") -> list[tuple[str, str, str]]:
-    """``(file, dataset, dimensions)`` of every ``Format="HDF"`` data item of XDMF ``text``;
-    with ``kind="Binary"``, ``(file, "", dimensions)`` of the raw binary items."""
+    """``(file, dataset, dimensions)`` of every ``Format="HDF"`` data item of XDMF ``text``
+    (its text ``FILE:/dataset``: the file is everything before the last ``:/``, a Windows
+    drive letter or spaces in the name included); with ``kind="Binary"``, ``(file, "",
+    dimensions)`` of the raw binary items. The XML is parsed as meshio parses it (a regular
+    expression missed single-quoted attributes and CDATA, which meshio reads); XML that
+    does not parse has none (meshio refuses it)."""
+    try:
+        root = ElementTree.fromstring(text)
+    except (ElementTree.ParseError, ValueError):
+        return []
     items = []
-    for attributes, body in _ITEM.findall(text):
-        found = {k.decode().lower(): html.unescape(v.decode(errors="replace"))
-                 for k, v in _ATTRIBUTE.findall(attributes)}
-        if found.get("format", "").upper() != kind.upper():
+    for element in root.iter():
+        if not isinstance(element.tag, str) or element.tag.rpartition("}")[2] != "DataItem":
             continue
-        content = html.unescape(body.decode(errors="replace")).strip()  # a&amp;b.h5: a&b.h5
+        found = {k.rpartition("}")[2].lower(): v for k, v in element.attrib.items()}
+        if found.get("format", "").strip().upper() != kind.upper():
+            continue
+        content = (element.text or "").strip()
         if kind.upper() == "BINARY":
             items.append((content, "", found.get("dimensions", "")))
             continue
