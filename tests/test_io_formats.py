@@ -531,10 +531,11 @@ def test_every_reader_takes_the_same_field_as_the_tags(tmp_path):
 
 
 def _pieces_vtu(pieces: list[tuple[np.ndarray, np.ndarray]], order: str = "<",
-                compress: bool = False, point_names=("u",)) -> bytes:
+                compress: bool = False, point_names=("u",), point_rows=None) -> bytes:
     """A VTU of several pieces with raw appended data in byte order ``order``, as VTK writes
     it: each piece's points (z = 0), triangles, a cell array ``tag`` (the triangle's number
-    in its piece + 1) and point arrays ``point_names`` (x + 2y)."""
+    in its piece + 1) and point arrays ``point_names`` (x + 2y; ``point_rows``: as many
+    rows in each piece, cut or repeated)."""
     import struct
     import zlib
 
@@ -556,11 +557,13 @@ def _pieces_vtu(pieces: list[tuple[np.ndarray, np.ndarray]], order: str = "<",
         return (f'<DataArray type="{vtk}" Name="{name}" NumberOfComponents="{comps}" '
                 f'format="appended" offset="{offset}"/>\n')
 
-    for points, triangles in pieces:
+    for i, (points, triangles) in enumerate(pieces):
         m = len(triangles)
+        values = points[:, 0] + 2 * points[:, 1]
+        if point_rows is not None:
+            values = np.resize(values, point_rows[i])
         head += (f'<Piece NumberOfPoints="{len(points)}" NumberOfCells="{m}">\n<PointData>\n'
-                 + "".join(item(name, points[:, 0] + 2 * points[:, 1], "Float64")
-                           for name in point_names)
+                 + "".join(item(name, values, "Float64") for name in point_names)
                  + "</PointData>\n<CellData>\n"
                  + item("tag", np.arange(1, m + 1, dtype=np.int32), "Int32")
                  + "</CellData>\n<Points>\n"
@@ -643,6 +646,11 @@ def test_a_compressed_block_of_a_later_piece_is_bounded_and_named(tmp_path):
     with pytest.raises(ValueError, match=r"names\.vtu: .*Piece 1 has point data \['u'\], "
                                          r"Piece 0 \['v'\]"):
         qdrefine.read(tmp_path / "names.vtu")
+    # a row too many in one piece and too few in the next: joined, each value one point off
+    (tmp_path / "rows.vtu").write_bytes(_pieces_vtu([one, one], point_rows=(4, 2)))
+    with pytest.raises(ValueError, match=r"rows\.vtu: .*Piece 0: PointData 'u': expected 3 "
+                                         r"rows"):
+        qdrefine.read(tmp_path / "rows.vtu")
 
 
 def test_gmsh_physical_points_are_dropped_with_a_warning(tmp_path):

@@ -219,15 +219,17 @@ def _piece(piece: ET.Element, array) -> _Piece:
     conn = array(cells["connectivity"], int(offsets.max(initial=0))).astype(np.int64).ravel()
     if n_cells and (np.diff(offsets, prepend=0).min() < 0 or offsets[-1] > len(conn)):
         raise ValueError("Cells: offsets do not fit the connectivity")
-    cell_fields = {}
-    for item in piece.findall("./CellData/DataArray"):
-        name = item.get("Name", "")
-        values = array(item, n_cells)
-        if len(values) != n_cells:
-            raise ValueError(f"CellData {name!r}: expected {n_cells} rows")
-        cell_fields[name] = values
-    point_fields = {item.get("Name", ""): array(item, n)
-                    for item in piece.findall("./PointData/DataArray")}
+    fields = []
+    for kind, rows in (("CellData", n_cells), ("PointData", n)):
+        found = {}  # each piece's own rows: pieces joined with a row too many shifted data
+        for item in piece.findall(f"./{kind}/DataArray"):
+            name = item.get("Name", "")
+            values = array(item, rows)
+            if len(values) != rows:
+                raise ValueError(f"{kind} {name!r}: expected {rows} rows")
+            found[name] = values
+        fields.append(found)
+    cell_fields, point_fields = fields
     return _Piece(points, offsets, types, conn[:int(offsets[-1]) if n_cells else 0],
                   cell_fields, point_fields)
 
