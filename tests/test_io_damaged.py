@@ -61,6 +61,21 @@ def test_msh41_entities_counts_are_checked(tmp_path, edit, fragment):
 
 
 @pytest.mark.parametrize("binary", [False, True])
+def test_msh41_entities_after_the_elements_are_refused(tmp_path, binary):
+    """``$Entities`` after ``$Elements``: the elements had taken physical group 0, so the
+    file read without cell tags or tagged edges (its physical names kept), silently
+    (review). Gmsh writes ``$Entities`` first."""
+    good = tmp_path / "good.msh"
+    qdrefine.write(good, _tagged(), binary=binary)
+    data = good.read_bytes()
+    entities = re.search(rb"\$Entities\n.*?\$EndEntities\n", data, re.S).group(0)
+    bad = tmp_path / "bad.msh"
+    bad.write_bytes(data.replace(entities, b"").replace(b"$EndElements\n",
+                                                         b"$EndElements\n" + entities))
+    _refused(bad, "$Entities after $Elements")
+
+
+@pytest.mark.parametrize("binary", [False, True])
 def test_a_node_block_of_impossible_dimension_is_named(tmp_path, binary):
     """A parametric node block of dimension -3 has 0 numbers per node: a division by zero
     (text) or a message without a place (binary)."""

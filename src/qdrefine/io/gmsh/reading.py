@@ -141,6 +141,11 @@ def _read(f: _File) -> RawMesh:
             if name in seen:  # the second replaced the first without a word
                 raise f.error(pos, f"a second ${name} section (a file holds one)")
             seen.add(name)
+        if name in ("Entities", "PartitionedEntities") and "Elements" in seen \
+                and c.version != "4.0":  # its elements took physical group 0 (tags lost)
+            raise f.error(pos, f"${name} after $Elements: the elements' physical groups "
+                               f"are those of their entities, so ${name} must come first "
+                               "(as Gmsh writes it)")
         handler = _HANDLERS.get(name)
         if c.version == "4.0" and (name not in ("MeshFormat", "Entities") or f.binary):
             handler = None  # meshio reads MSH 4.0; the entities only say what it loses
