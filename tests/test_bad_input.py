@@ -653,6 +653,22 @@ def test_reading_memory_is_checked_before_the_file_is_read(tmp_path, monkeypatch
     assert qdrefine.read(path).n_triangles == examples.square(30).n_triangles
 
 
+@pytest.mark.parametrize("file, cut_after", [("m.ele", b"1"), ("m.node", b"0.98")])
+def test_a_triangle_file_cut_short_in_a_stamped_set_is_refused(tmp_path, file, cut_after):
+    """A file of a set qdrefine wrote, cut inside its last number, read as a smaller number
+    (the last tag 17 as 1, the last y 0.987654321 as 0.98) with exit 0 (review): its stamp,
+    the last line written, is gone while the others have theirs."""
+    points = np.array([[0.0, 0], [1, 0], [1, 1], [0, 0.987654321]])
+    mesh = Mesh(points, [[0, 1, 2], [0, 2, 3]], cell_tags=[15, 17], edges=[[0, 1]],
+                edge_tags=[42])
+    qdrefine.write(tmp_path / "m.node", mesh)
+    data = (tmp_path / file).read_bytes()
+    last = data.rindex(b"17\n" if file == "m.ele" else b"0.987654")
+    (tmp_path / file).write_bytes(data[:last + len(cut_after)])
+    with pytest.raises(ValueError, match=rf"{file}: no '# qdrefine set' line at its end"):
+        qdrefine.read(tmp_path / "m.ele")
+
+
 def test_a_mixed_triangle_set_is_refused(tmp_path, run):
     """Issue 17: Triangle's three files from two different writes (an interrupted or
     concurrent write between the renames) are refused with one line; a set written by

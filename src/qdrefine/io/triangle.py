@@ -7,8 +7,9 @@ written as one set: each goes to a temporary file, and they replace their target
 all three are written.
 Each ends with the comment ``# qdrefine set DIGEST``, a hash of the three files' content:
 a reader that finds two different stamps in one set refuses it (a mixed set, left by an
-interrupted or concurrent write between the three renames). Files of other tools carry no
-stamp and are read as they are.
+interrupted or concurrent write between the three renames), as it refuses a set where one
+file has the stamp and another has none (a file cut short loses its last line). Files of
+other tools carry no stamp and are read as they are.
 """
 
 from __future__ import annotations
@@ -75,9 +76,17 @@ def _stamp_of(path: Path) -> str | None:
 
 
 def _check_set(paths: list[Path]) -> None:
-    """Refuse a set whose stamped files come from different writes."""
-    stamps = [(p, _stamp_of(p)) for p in paths if p.is_file()]
-    stamps = [(p, s) for p, s in stamps if s is not None]
+    """Refuse a set whose stamped files come from different writes, or that has a stamped
+    file and one without its stamp (cut short: the stamp is the last line written)."""
+    present = [(p, _stamp_of(p)) for p in paths if p.is_file()]
+    stamps = [(p, s) for p, s in present if s is not None]
+    bare = [p for p, s in present if s is None]
+    if stamps and bare:  # a file cut inside its last number read as a smaller one
+        (a, sa), b = stamps[0], bare[0]
+        raise ValueError(f"{b}: no '{SET_STAMP.strip()}' line at its end, which {a.name} "
+                         f"has ({sa}): cut short, or changed by another tool since qdrefine "
+                         "wrote the set; write the mesh again (or remove that line from "
+                         "every file of the set to read them as they are)")
     if len({s for _, s in stamps}) > 1:
         (a, sa), (b, sb) = stamps[0], next((p, s) for p, s in stamps if s != stamps[0][1])
         raise ValueError(f"{b}: written by another run than {a.name} (qdrefine set {sb}, "
