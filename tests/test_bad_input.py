@@ -292,6 +292,36 @@ def test_too_large_for_memory_python_api():
         qdrefine.refine(mesh, levels=12)
 
 
+@pytest.mark.parametrize("suffix", [".vtu", ".xdmf"])
+def test_compressed_arrays_are_checked_against_the_memory_before_they_expand(
+        tmp_path, monkeypatch, suffix):
+    """A 385 kB VTU (or an XDMF whose HDF5 dataset is gzip-compressed) expanded to 2.1 GB
+    (0.9 GB) past ``QDREFINE_MEMORY_LIMIT``: only the file's own bytes were checked. The
+    sizes the file declares are checked before anything is decompressed."""
+    mesh = examples.square(3)
+    field = np.zeros((mesh.n_points, 200_000))  # 25.6 MB of zeros, a few kB compressed
+    path = tmp_path / f"m{suffix}"
+    if suffix == ".vtu":
+        qdrefine.write(path, mesh.replace(point_data={"big": field}), compress=True)
+    else:  # as another writer may: one attribute in a gzip-compressed dataset
+        import h5py
+
+        qdrefine.write(path, mesh)
+        with h5py.File(tmp_path / "m.h5", "a") as h5:
+            h5.create_dataset("big", data=field, compression="gzip")
+        path.write_text(path.read_text().replace("</Topology>", (
+            '</Topology><Attribute Name="big" AttributeType="Matrix" Center="Node"><DataItem '
+            f'DataType="Float" Precision="8" Dimensions="{mesh.n_points} 200000" '
+            'Format="HDF">m.h5:/big</DataItem></Attribute>')))
+    assert sum(p.stat().st_size for p in tmp_path.iterdir()) < 1 << 20
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "8MiB")
+    with pytest.raises(MemoryError, match=rf"reading {re.escape(str(path))} \(its compressed "
+                                          r".*big.*\) needs about 0.02\d* GiB; 0.00781 GiB"):
+        qdrefine.read(path)
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "1GiB")
+    assert qdrefine.read(path).point_data["big"].shape == field.shape
+
+
 def test_memory_limit_variable(monkeypatch):
     mesh = examples.square(4)
     monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "1KiB")

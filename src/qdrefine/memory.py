@@ -65,7 +65,7 @@ def reading_needed_for_bytes(size: int) -> int:
     estimate from above): the bytes themselves, a decoded copy of text, and the parsed
     arrays, which take no more than the file does (``int32`` indices of binary files become
     ``int64``: twice as many bytes, for at most half the file). Compressed VTU data can
-    expand beyond this; its arrays are then checked by the validation's estimate."""
+    expand beyond this: the readers check the sizes it declares before decompressing."""
     return 3 * int(size)
 
 

@@ -27,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from ..memory import check_needed
 from ._core import TAG_NAMES, RawMesh, from_blocks, mesh_data, read_bytes, split_data, writable_data
 from .atomic import atomic_path
 from .recorded import record, record_of, restored
@@ -110,6 +111,7 @@ def _read(path: Path, data: bytes) -> RawMesh:
     if not pieces:
         raise ValueError("no Piece")
     base = underscore + 1
+    expanded = [0]  # bytes the compressed blocks may expand to, so far
 
     def array(item: ET.Element, rows: int | None) -> NDArray:
         """The values of ``item`` in native byte order; a compressed block decompresses to
@@ -124,13 +126,15 @@ def _read(path: Path, data: bytes) -> RawMesh:
         offset = base + int(item.get("offset", "-1"))
         comps = components(item)
         limit = UNSIZED_LIMIT if rows is None else max(rows, 0) * comps * kind.itemsize
-        name = item.get("Name")
-        raw = _block(data, offset, header, decompressor, limit,
-                     f"DataArray {name!r}" if name else "an unnamed DataArray")
+        what = f"DataArray {item.get('Name')!r}" if item.get("Name") else "an unnamed DataArray"
+        if decompressor is not None and rows is not None:  # declared sizes fit the memory
+            expanded[0] += limit  # (a 385 kB file expanded to 2.1 GB past any limit)
+            check_needed(expanded[0], f"reading {path} (its compressed arrays, up to {what})")
+        raw = _block(data, offset, header, decompressor, limit, what)
         a = np.frombuffer(raw, dtype=kind).astype(kind.newbyteorder("="), copy=False)
         if len(a) % comps:  # components() is at least 1
-            raise ValueError(f"byte {offset}: DataArray {item.get('Name')!r} holds {len(a)} "
-                             f"values, not a multiple of {comps} components")
+            raise ValueError(f"byte {offset}: {what} holds {len(a)} values, not a multiple "
+                             f"of {comps} components")
         return a.reshape(-1, comps) if comps > 1 else a
 
     parts = []
@@ -201,8 +205,7 @@ class _Piece(NamedTuple):
 def _piece(piece: ET.Element, array) -> _Piece:
     """The arrays of ``piece``, each checked against its ``NumberOfPoints`` and
     ``NumberOfCells`` (``array(item, rows)``: a DataArray's values)."""
-    n = int(piece.get("NumberOfPoints", "-1"))
-    n_cells = int(piece.get("NumberOfCells", "-1"))
+    n, n_cells = (int(piece.get(f"NumberOf{what}", "-1")) for what in ("Points", "Cells"))
     points_item = piece.find("./Points/DataArray")
     if points_item is None:
         raise ValueError("no Points")
@@ -224,14 +227,11 @@ def _piece(piece: ET.Element, array) -> _Piece:
         found = {}  # each piece's own rows: pieces joined with a row too many shifted data
         for item in piece.findall(f"./{kind}/DataArray"):
             name = item.get("Name", "")
-            values = array(item, rows)
-            if len(values) != rows:
+            found[name] = array(item, rows)
+            if len(found[name]) != rows:
                 raise ValueError(f"{kind} {name!r}: expected {rows} rows")
-            found[name] = values
         fields.append(found)
-    cell_fields, point_fields = fields
-    return _Piece(points, offsets, types, conn[:int(offsets[-1]) if n_cells else 0],
-                  cell_fields, point_fields)
+    return _Piece(points, offsets, types, conn[:int(offsets[-1]) if n_cells else 0], *fields)
 
 
 def _joined(parts: list[_Piece]) -> _Piece:
