@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 import qdrefine
 from meshes import jittered_grid
-from qdrefine import Mesh
+from qdrefine import Mesh, examples
 
 #: (extension, write keywords) of every variant that holds tags, data and physical names.
 LOSSLESS = [(".msh", {}), (".msh", {"binary": True}), (".msh", {"format_version": "2.2"}),
@@ -102,6 +102,43 @@ def test_vtu_compressed_reads_back(tmp_path):
     same_everything(mesh, qdrefine.read(tmp_path / "z.vtu"))
     back = meshio.read(tmp_path / "z.vtu")
     assert np.array_equal(back.points[:, :2], mesh.points)
+
+
+def _inline_base64(data: bytes) -> bytes:
+    """A VTU of raw appended data (64-bit headers) with every array inline, base64, as
+    VTK's other writers put it: what qdrefine reads through meshio."""
+    import base64
+
+    start = data.find(b"<AppendedData")
+    blob = data[data.find(b"_", data.find(b">", start)) + 1:data.rfind(b"\n</AppendedData>")]
+
+    def inline(match: re.Match) -> bytes:
+        offset = int(re.search(rb'offset="(\d+)"', match.group(1)).group(1))
+        n = int(np.frombuffer(blob, "<u8", 1, offset)[0])
+        attributes = re.sub(rb'format="appended" offset="\d+"', b'format="binary"',
+                            match.group(1))
+        return (b"<DataArray" + attributes + b">"
+                + base64.b64encode(blob[offset:offset + 8 + n]) + b"</DataArray>")
+
+    return re.sub(rb"<DataArray([^>]*?)/>", inline, data[:start]) + b"</VTKFile>\n"
+
+
+@pytest.mark.parametrize("change", ["byte-order mark", "inline base64"])
+def test_a_vtu_read_through_any_path_keeps_names_and_dtypes(tmp_path, change):
+    """A VTU with a byte-order mark, or with its arrays inline in base64, went to meshio,
+    which ignores qdrefine's field data: the physical names were lost and float16, bool and
+    (k, 2, 2) fields came back as float32, uint8 and (k, 4), silently (review)."""
+    mesh = examples.plate_with_hole(8, 2)
+    mesh = mesh.replace(point_data={"h": np.arange(mesh.n_points, dtype=np.float16),
+                                    "b": np.arange(mesh.n_points) % 2 == 0},
+                        cell_data={"v": np.ones((mesh.n_triangles, 2, 2), np.int16)})
+    path = tmp_path / "m.vtu"
+    qdrefine.write(path, mesh)
+    data = path.read_bytes()
+    path.write_bytes(b"\xef\xbb\xbf" + data if change == "byte-order mark"
+                     else _inline_base64(data))
+    assert meshio.read(path).points.shape == (mesh.n_points, 3)  # a file meshio reads
+    same_everything(mesh, qdrefine.read(path))
 
 
 # files written by Gmsh itself (the SDK) -----------------------------------------------------

@@ -9,8 +9,13 @@ ignore. The data is appended raw (the fastest to write and read), or zlib-compre
 ``compress=True``; ParaView and meshio read both.
 
 Read: appended raw, zlib or lzma data with 32- or 64-bit headers, little- or big-endian, in
-one or several pieces (joined in order, as meshio joins them); any other VTU (inline ASCII or
-base64, other compressors) goes to meshio.
+one or several pieces (joined in order, as meshio joins them), a byte-order mark before the
+XML too; any other VTU (inline ASCII or base64, other compressors) goes to meshio, and the
+``qdrefine`` field data it reads restores the names, shapes and dtypes there as well.
+
+One concern: the VTU layout, read and written around the same cells and the same field-data
+record (its block decoding is :mod:`qdrefine.io.vtk_blocks`), which is why it passes 400
+lines.
 """
 
 from __future__ import annotations
@@ -77,7 +82,16 @@ def read(path: Path) -> RawMesh:
                 binascii.Error) as exc:
             raise ValueError(f"{path}: not a readable VTK XML unstructured grid file "
                              f"({str(exc)[:200] or type(exc).__name__})") from None
-        return read_with_meshio(path, "vtu", "VTK XML unstructured grid")
+        read: list = []  # meshio's mesh, whose field data holds qdrefine's record
+
+        def reader():
+            import meshio
+
+            read.append(meshio.read(path, file_format="vtu"))
+            return read[0]
+
+        raw = read_with_meshio(path, "vtu", "VTK XML unstructured grid", reader)
+        return _recorded(raw, _meshio_meta(read[0].field_data.get(_META)))
     except (ValueError, KeyError, IndexError, ET.ParseError, zlib.error, LZMAError) as exc:
         if str(exc).startswith(str(path)):
             raise
@@ -88,7 +102,8 @@ def read(path: Path) -> RawMesh:
 
 def _read(path: Path, data: bytes) -> RawMesh:
     start = data.find(b"<AppendedData")
-    if start < 0 or not data.lstrip().startswith((b"<?xml", b"<VTKFile")):
+    if start < 0 or not data.removeprefix(b"\xef\xbb\xbf").lstrip().startswith(
+            (b"<?xml", b"<VTKFile")):  # a byte-order mark too (meshio lost the names)
         raise _Fallback
     tag_end = data.find(b">", start)
     underscore = data.find(b"_", tag_end)
@@ -168,25 +183,28 @@ def _read(path: Path, data: bytes) -> RawMesh:
         if t == 5:
             triangle_cells = rows
     raw = from_blocks(path, points, blocks, tags)
-    meta = _meta(root, array)
+    if len(raw.triangles):
+        split_data(raw, point_data, {name: values[triangle_cells]
+                                     for name, values in cell_fields.items() if name != key})
+    return _recorded(raw, _meta(root, array))
+
+
+def _recorded(raw: RawMesh, meta: dict) -> RawMesh:
+    """``raw`` with what qdrefine's field data ``meta`` records: the physical names, and
+    each data field in its recorded shape and dtype."""
     try:
         raw.physical_names = {(int(d), int(t)): str(nm) for d, t, nm in meta.get("names", [])}
     except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"field data {_META!r}: its physical names are not (dim, tag, "
-                         "name) triples") from None
+        raise ValueError(f"{raw.path}: not a readable VTK XML unstructured grid file (field "
+                         f"data {_META!r}: its physical names are not (dim, tag, name) "
+                         "triples)") from None
     shapes = meta.get("shapes")
-
-    def kept(values: NDArray, where: str, name: str, rows: int) -> NDArray:
-        out = restored(values, record_of(shapes, where, name), rows,
-                       f"{path}: {where} data {name!r}")
-        return np.array(values) if out is None else out
-
-    point_data = {name: kept(values, "point", name, len(points))
-                  for name, values in point_data.items()}
-    cell_data = {name: kept(values[triangle_cells], "cell", name, len(triangle_cells))
-                 for name, values in cell_fields.items() if name != key}
-    if len(raw.triangles):
-        split_data(raw, point_data, cell_data)
+    for where, data, rows in (("point", raw.point_data, len(raw.points)),
+                              ("cell", raw.cell_data, len(raw.triangles))):
+        for name, values in data.items():
+            out = restored(values, record_of(shapes, where, name), rows,
+                           f"{raw.path}: {where} data {name!r}")
+            data[name] = np.array(values) if out is None else out
     return raw
 
 
@@ -270,6 +288,16 @@ def _meta(root: ET.Element, array) -> dict:
                 raise ValueError(f"field data {_META!r} is not JSON") from None
             return meta if isinstance(meta, dict) else {}
     return {}
+
+
+def _meshio_meta(values: NDArray | None) -> dict:
+    """qdrefine's field data as meshio read it (bytes of JSON); ``{}`` where it is not
+    (a file of another tool, or a damaged record: read as stored)."""
+    try:
+        meta = json.loads(np.asarray(values).astype(np.uint8).tobytes().decode())
+    except (TypeError, ValueError, RecursionError):
+        return {}
+    return meta if isinstance(meta, dict) else {}
 
 
 def _block(data: bytes, offset: int, header: np.dtype, decompressor, limit: int,
