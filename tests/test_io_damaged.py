@@ -60,6 +60,28 @@ def test_msh41_entities_counts_are_checked(tmp_path, edit, fragment):
     _refused(bad, "$Entities", fragment)
 
 
+@pytest.mark.parametrize("version", ["4.1", "2.2"])
+@pytest.mark.parametrize("binary", [False, True])
+def test_a_msh_file_cut_between_its_sections_says_so(tmp_path, binary, version):
+    """A file qdrefine wrote, cut after ``$EndElements`` (or before its last view), read
+    without its point and cell data (int32 data as float64), silently (review): the
+    ``$QdrefineData`` record now comes before the mesh, and a view it records that the
+    file does not hold is an error."""
+    mesh = _tagged().replace(point_data={"u": np.arange(len(P), dtype=np.int32)},
+                             cell_data={"k": np.arange(len(T), dtype=np.int32)})
+    good = tmp_path / "good.msh"
+    qdrefine.write(good, mesh, binary=binary, format_version=version)
+    data = good.read_bytes()
+    assert data.index(b"$QdrefineData") < data.index(b"$Nodes")
+    read = qdrefine.read(good)
+    assert read.point_data["u"].dtype == np.int32 and read.cell_data["k"].dtype == np.int32
+    for cut, missing in ((data.index(b"$EndElements") + len(b"$EndElements\n"), "point"),
+                         (data.index(b"$ElementData"), "cell")):
+        bad = tmp_path / "bad.msh"
+        bad.write_bytes(data[:cut])
+        _refused(bad, f"$QdrefineData records the {missing} data", "the file ends early")
+
+
 @pytest.mark.parametrize("binary", [False, True])
 def test_msh41_entities_after_the_elements_are_refused(tmp_path, binary):
     """``$Entities`` after ``$Elements``: the elements had taken physical group 0, so the

@@ -18,8 +18,9 @@ Layout of the files written
   view over the triangles, named by the field. Gmsh views have 1, 3 or 9 components and
   hold doubles: other widths are padded with zeros, and a ``$QdrefineData`` section (which
   Gmsh and meshio skip) records each field's shape and dtype so that qdrefine reads the field
-  back as it was. Integer data of 2**53 or more in magnitude is refused: a double holds
-  2**53 exactly, but 2**53 + 1 rounds to it.
+  back as it was. It comes before the mesh: a file cut short keeps it, and a view it records
+  that the file lacks is an error. Integer data of 2**53 or more in magnitude is refused:
+  a double holds 2**53 exactly, but 2**53 + 1 rounds to it.
 """
 
 from __future__ import annotations

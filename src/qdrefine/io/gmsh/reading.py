@@ -177,6 +177,13 @@ def _read(f: _File) -> RawMesh:
         raise f.error(0, "no $MeshFormat section (empty file?)")
     if c.points is None:
         raise f.error(len(data), "no $Nodes section")
+    for where, views in (("point", c.node_data), ("cell", c.element_data)):
+        recorded = c.dtypes.get(where)
+        missing = [n for n in recorded if n not in views] if isinstance(recorded, dict) else []
+        if missing:  # qdrefine writes the record before the mesh: the file was cut short
+            raise f.error(len(data), f"$QdrefineData records the {where} data {missing[0]!r}, "
+                                     "which the file does not hold (the file ends early, or "
+                                     "the view was removed)")
     return _assemble(f, c)
 
 

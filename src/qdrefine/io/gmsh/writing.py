@@ -212,11 +212,14 @@ def _write(path: Path, source: Chunks, binary: bool, version: str, physical_name
             for (dim, tag), name in names:
                 out.write(f'{dim} {tag} "{name}"\n'.encode())
             out.write(b"$EndPhysicalNames\n")
+        record = sections[:1] if sections and sections[0].startswith(b"$QdrefineData") else []
+        for part in record:  # before the mesh: a file cut short keeps it, and says so
+            out.write(part)
         if version == "4.1":
             _write41(out, source, binary)
         else:
             _write22(out, source, binary)
-        for part in sections:
+        for part in sections[len(record):]:
             out.write(part)
 
 
@@ -359,8 +362,8 @@ def _write22(out, source: Chunks, binary: bool) -> None:
 
 def _data_sections(path: Path, mesh, point_data: dict, cell_data: dict, binary: bool
                    ) -> list[bytes]:
-    """``$NodeData`` / ``$ElementData`` views and the ``$QdrefineData`` record (checked before
-    the file is opened)."""
+    """The ``$QdrefineData`` record (first, where there is one) and the ``$NodeData`` /
+    ``$ElementData`` views (checked before the file is opened)."""
     parts, spec = [], {}
     for where, kind, fields, first in (("point", "NodeData", point_data, 1),
                                        ("cell", "ElementData", cell_data, 1)):
@@ -394,6 +397,7 @@ def _data_sections(path: Path, mesh, point_data: dict, cell_data: dict, binary: 
             else:
                 body = b"".join(format_floats(np.column_stack([ids, flat]), first="%d"))
             parts.append(head + body + f"$End{kind}\n".encode())
-    if spec:
-        parts.append(b"$QdrefineData\n" + json.dumps(spec).encode() + b"\n$EndQdrefineData\n")
+    if spec:  # first: a file cut after it is missing views it records (the reader says so)
+        parts.insert(0, b"$QdrefineData\n" + json.dumps(spec).encode()
+                     + b"\n$EndQdrefineData\n")
     return parts
