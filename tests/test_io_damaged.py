@@ -60,6 +60,18 @@ def test_msh41_entities_counts_are_checked(tmp_path, edit, fragment):
     _refused(bad, "$Entities", fragment)
 
 
+def test_a_physical_name_that_is_not_utf8_is_read_as_latin1_with_a_warning(tmp_path):
+    """'caf\\xe9' (Latin-1, from an older tool) read as 'caf\\ufffd' without a word, and
+    convert wrote the replacement character back (review)."""
+    path = tmp_path / "latin.msh"
+    path.write_bytes(b'$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n1\n2 5 "caf\xe9"\n'
+                     b"$EndPhysicalNames\n$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n$EndNodes\n"
+                     b"$Elements\n1\n1 2 2 5 1 1 2 3\n$EndElements\n")
+    with pytest.warns(UserWarning, match=r"latin\.msh: line 6: not UTF-8; read as Latin-1"):
+        mesh = qdrefine.read(path)
+    assert mesh.physical_names == {(2, 5): "café"}
+
+
 @pytest.mark.parametrize("version", ["4.1", "2.2"])
 @pytest.mark.parametrize("binary", [False, True])
 def test_a_msh_file_cut_between_its_sections_says_so(tmp_path, binary, version):

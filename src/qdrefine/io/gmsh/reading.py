@@ -67,7 +67,19 @@ class _File:
         end = self.data.find(b"\n", pos)
         if end < 0:
             end = len(self.data)
-        return self.data[pos:end].decode("utf-8", "replace").strip(), end + 1
+        return self.text(pos, end).strip(), end + 1
+
+    def text(self, start: int, end: int) -> str:
+        """The bytes ``start:end`` as UTF-8, or as Latin-1 with a warning where they are not
+        UTF-8 (a name of an older tool: 'caf\\xe9' was read as 'caf\\ufffd', silently, and
+        written back so)."""
+        chunk = self.data[start:end]
+        try:
+            return chunk.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            warnings.warn(f"{self.path}: {self.where(start + exc.start)}: not UTF-8; read as "
+                          "Latin-1", stacklevel=4)
+            return chunk.decode("latin-1")
 
     def take(self, pos: int, dtype: np.dtype, count: int, what: str) -> tuple[NDArray, int]:
         """``count`` binary items of ``dtype`` at ``pos`` (bounded by the file size)."""
@@ -247,7 +259,7 @@ def _physical_names(f: _File, c: _Content, start: int) -> int:
     end = f.end_of("PhysicalNames", start)
     # lines end at "\n" only, as Gmsh reads them (str.splitlines also breaks at "\x0c",
     # "\u2028" and others, which a name may hold)
-    lines = f.data[start:end].decode("utf-8", "replace").split("\n")
+    lines = f.text(start, end).split("\n")
     lines = [x.removesuffix("\r") for x in lines if x.strip()]
     if not lines or not lines[0].strip().isdigit():
         raise f.error(start, "expected the number of physical names")
