@@ -70,6 +70,10 @@ def test_a_physical_name_that_is_not_utf8_is_read_as_latin1_with_a_warning(tmp_p
     with pytest.warns(UserWarning, match=r"latin\.msh: line 6: not UTF-8; read as Latin-1"):
         mesh = qdrefine.read(path)
     assert mesh.physical_names == {(2, 5): "café"}
+    path.write_bytes(path.read_bytes().replace(b"\xe9", b"e") + b'$NodeData\n1\n"caf\xe9"\n1\n'
+                     b"0\n3\n0\n1\n3\n1 1\n2 2\n3 3\n$EndNodeData\n")  # a view's name
+    with pytest.warns(UserWarning, match=r"latin\.msh: line 20: not UTF-8; read as Latin-1"):
+        assert list(qdrefine.read(path).point_data) == ["café"]
 
 
 @pytest.mark.parametrize("version", ["4.1", "2.2"])

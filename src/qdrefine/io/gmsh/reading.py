@@ -62,12 +62,15 @@ class _File:
             line = self.data.count(b"\n", 0, start) + exc.line
             raise GmshError(f"line {line}: expected {exc.what}, got {exc.token!r}") from None
 
-    def line(self, pos: int) -> tuple[str, int]:
-        """The text line at ``pos`` (stripped) and the offset after it."""
+    def line(self, pos: int, name: bool = False) -> tuple[str, int]:
+        """The text line at ``pos`` (stripped) and the offset after it; ``name``: a name,
+        read by :meth:`text` (other lines hold numbers, and their bad bytes are named by
+        the error they make)."""
         end = self.data.find(b"\n", pos)
         if end < 0:
             end = len(self.data)
-        return self.text(pos, end).strip(), end + 1
+        text = self.text(pos, end) if name else self.data[pos:end].decode("utf-8", "replace")
+        return text.strip(), end + 1
 
     def text(self, start: int, end: int) -> str:
         """The bytes ``start:end`` as UTF-8, or as Latin-1 with a warning where they are not
@@ -694,6 +697,8 @@ def _data_section(kind: str):
             for _ in range(int(text)):
                 if pos >= len(f.data) or f.data.startswith(b"$End", pos):
                     raise f.error(start, f"${kind}: the section ends inside its {text} tags")
+                if not header and not values:
+                    name_at = pos  # the view's name, decoded once the section reads
                 value, pos = f.line(pos)
                 values.append(value)
             header.append(values)
@@ -728,6 +733,8 @@ def _data_section(kind: str):
         if twice is not None:
             what = "node" if kind == "NodeData" else "element"
             raise f.error(start, f"${kind} {name!r} gives {what} {twice} two values")
+        if strings:
+            name = f.line(name_at, name=True)[0].strip('"')  # not UTF-8: said here
         if name in target:  # a view's later time step: one field per name
             warnings.warn(f"{f.path}: ${kind} {name!r} is given more than once (time steps "
                           "of a view); the last one is kept", stacklevel=2)
