@@ -806,6 +806,7 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
         raise GmshError(f"node tag {twice} is given twice in $Nodes")
     contiguous = _is_range(tags)
     blocks, block_tags, element_ids = [], [], []
+    negative = 0  # the first negative physical tag
     for kind, phys, _dim, ids, nodes in c.blocks:
         rows = _rows_of(tags, nodes, contiguous)
         if (rows < 0).any():
@@ -814,8 +815,15 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
                             "which is not in $Nodes")
         name = ELEMENTS[kind][0]
         blocks.append((name, rows))
-        block_tags.append(np.broadcast_to(np.asarray(phys, np.int64), (len(rows),)))
+        phys = np.asarray(phys, np.int64)
+        if phys.size and phys.min() < 0:  # read as Gmsh reads it (it was kept negative)
+            negative = negative or int(phys.min())
+            phys = np.abs(phys)
+        block_tags.append(np.broadcast_to(phys, (len(rows),)))
         element_ids.append(ids)
+    if negative:
+        warnings.warn(f"{f.path}: negative physical tags (e.g. {negative}), which Gmsh reads "
+                      f"as their absolute values ({-negative}): read so", stacklevel=3)
     if element_ids:
         twice = _first_duplicate(np.concatenate(element_ids).astype(np.int64))
         if twice is not None:
