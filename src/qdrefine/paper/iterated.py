@@ -79,8 +79,11 @@ class Iterated:
     A class stands for its shape in the canonical placement ``(0,0), (1,0), (x, y)``. A
     shape with a tie (``x = 1/2``: two equal longest-edge endpoints; an isosceles apex) is
     labelled in a mesh by its coordinates, so a mesh may partition a congruent copy as the
-    mirror image, which for 7T-QD can give other children: a mesh may hold a few more shapes
-    than counted here (tests compare with brute-force meshes).
+    mirror image, which for 7T-QD can give other children. A shape exactly on a 7T-QD
+    decision arc (two pentagon splits of equal squared lengths, e.g. ``(0.24, 0.32)``) is
+    split in a mesh by its rounded trisection points, which may pick the other split. A
+    mesh may so hold a few more shapes than counted here, and another area-weighted quality
+    (tests compare the worst ratio with brute-force meshes).
     """
 
     scheme: str
