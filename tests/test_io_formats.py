@@ -141,6 +141,31 @@ def test_a_vtu_read_through_any_path_keeps_names_and_dtypes(tmp_path, change):
     same_everything(mesh, qdrefine.read(path))
 
 
+def test_obj_files_as_other_tools_write_them(tmp_path):
+    """meshio's OBJ reader refused a file with normals or texture coordinates, as Blender
+    writes it ("len(points) = 4, but len(point_data['obj:vn']) = 1"), and took negative
+    (relative) indices for vertex numbers; faces in every form, skipped lines named."""
+    square = Mesh(np.array([[0.0, 0], [1, 0], [0, 1], [1, 1]]), np.array([[0, 1, 2], [1, 3, 2]]))
+    vertices = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+    for faces in ("f 1/1/1 2/2/1 3/3/1\nf 2/2/1 4/4/1 3/3/1\n",  # Blender
+                  "f 1//1 2//1 3//1\nf 2/2 4/4 3/3\n",
+                  "f -4 -3 -2\nf -3 -1 -2\n"):  # counted back from the latest vertex
+        path = tmp_path / "m.obj"
+        path.write_text("# Blender\nmtllib m.mtl\no Plane\n" + vertices
+                        + "vt 0 0\nvt 1 0\nvt 0 1\nvt 1 1\nvn 0 0 1\nusemtl None\ns off\n"
+                        + faces)
+        with pytest.warns(UserWarning, match=r"m\.obj: 1 'vn', 4 'vt' lines skipped"):
+            mesh = qdrefine.read(path)
+        assert np.array_equal(mesh.points, square.points)
+        assert np.array_equal(mesh.triangles, square.triangles), faces
+    path.write_text(vertices + "f 1 2 3\nf 2 4 9\n")
+    with pytest.raises(ValueError, match=r"m\.obj, line 6: vertex index 9 outside 1\.\.4"):
+        qdrefine.read(path)
+    path.write_text(vertices + "f 1 2 x\n")
+    with pytest.raises(ValueError, match=r"m\.obj, line 5: not a number in 'f 1 2 x'"):
+        qdrefine.read(path)
+
+
 # files written by Gmsh itself (the SDK) -----------------------------------------------------
 
 @pytest.fixture(scope="module")

@@ -1,18 +1,25 @@
 """Wavefront OBJ: written here (``v`` and ``f`` lines, with MeshLab's count comments
-``# Vertices: N`` and ``# Faces: M`` in the header), read by meshio; a file whose header
-has those counts must hold exactly that many vertices and faces, so a file cut at a line
-end is refused instead of read as a smaller mesh (OBJ itself declares no counts: a file
-without them that was cut between two lines cannot be told from a whole one)."""
+``# Vertices: N`` and ``# Faces: M`` in the header) and read here: vertices ``v x y [z]``
+and faces ``f`` in every form the format has (``i``, ``i/t``, ``i//n``, ``i/t/n``; negative
+indices count back from the latest vertex); texture coordinates, normals and other
+statements are skipped (a warning names which; groups and materials silently). meshio's
+reader refused a file with normals or texture coordinates (as Blender writes them) and
+took negative indices for vertex numbers. A file whose header has the count comments must
+hold exactly that many vertices and faces, so a file cut at a line end is refused instead
+of read as a smaller mesh (OBJ itself declares no counts: a file without them that was cut
+between two lines cannot be told from a whole one)."""
 
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
-from ._core import RawMesh
+import numpy as np
+
+from ._core import RawMesh, check_regular, from_blocks, read_bytes
 from ._text import format_floats, int_lines
 from .atomic import atomic_path
-from .meshio_formats import read_with_meshio
 
 __all__ = ["read", "write"]
 
@@ -38,9 +45,10 @@ def _prefixed(prefix: bytes, lines: bytes) -> bytes:
 
 
 def read(path: Path) -> RawMesh:
-    """meshio's reader, then the counts of the header's ``# Vertices`` / ``# Faces``
-    comments (where present) checked against what was read."""
-    raw = read_with_meshio(path, "obj", "Wavefront OBJ")
+    """The vertices and faces of ``path``, then the counts of the header's ``# Vertices`` /
+    ``# Faces`` comments (where present) checked against what was read."""
+    check_regular(path)
+    raw, n_faces = _parsed(path, read_bytes(path))
     counts = {}
     with open(path, "rb") as f:
         header = f.readline()
@@ -56,7 +64,7 @@ def read(path: Path) -> RawMesh:
         missing = ", ".join(f"# {n}" for n in ("Vertices", "Faces") if n not in counts)
         raise ValueError(f"{path}: its header lacks {missing} (the other count is there, or "
                          "qdrefine wrote it): damaged?")
-    found = {"Vertices": len(raw.points), "Faces": len(raw.triangles)}
+    found = {"Vertices": len(raw.points), "Faces": n_faces}
     for name, announced in counts.items():
         if found[name] != announced:
             raise ValueError(f"{path}: the file holds {found[name]} "
@@ -64,3 +72,62 @@ def read(path: Path) -> RawMesh:
                              f", its header announces {announced} (# {name}: {announced}); "
                              "was it cut short?")
     return raw
+
+
+#: Statements that carry no geometry of a triangle mesh, skipped without a word.
+_QUIET = {b"g", b"o", b"s", b"usemtl", b"mtllib", b"vp"}
+#: Cell names of faces by their number of vertices (as meshio names them).
+_KINDS = {3: "triangle", 4: "quad"}
+
+
+class _Bad(ValueError):
+    """A line of an OBJ file that is not what its statement needs (the message says why)."""
+
+
+def _parsed(path: Path, data: bytes) -> tuple[RawMesh, int]:
+    """``(raw mesh, number of faces)`` of the OBJ text ``data``; errors name the line."""
+    points: list[list[float]] = []
+    faces: dict[int, list[list[int]]] = {}
+    skipped: dict[str, int] = {}
+    for number, line in enumerate(data.split(b"\n"), start=1):
+        words = line.split(b"#", 1)[0].split()
+        if not words:
+            continue
+        key = words[0]
+        try:
+            if b"_" in line and key in (b"v", b"f"):  # Python reads 1_0 as 10; C does not
+                raise ValueError
+            if key == b"v":
+                if not 3 <= len(words) <= 5:  # x y z [w]; some tools write x y
+                    raise _Bad(f"expected 'v x y z', got {len(words) - 1} numbers")
+                xyz = [float(w) for w in words[1:4]]
+                points.append(xyz + [0.0] * (3 - len(xyz)))
+            elif key == b"f":
+                if len(words) < 4:
+                    raise _Bad(f"a face of {len(words) - 1} vertices")
+                n = len(points)
+                face = []
+                for word in words[1:]:
+                    i = int(word.split(b"/", 1)[0])
+                    if i == 0 or not -n <= i <= n:
+                        raise _Bad(f"vertex index {i} outside 1..{n} (or -{n}..-1, counted "
+                                   "back from the latest vertex)")
+                    face.append(i - 1 if i > 0 else n + i)
+                faces.setdefault(len(face), []).append(face)
+            elif key not in _QUIET:
+                name = key.decode(errors="replace")
+                skipped[name] = skipped.get(name, 0) + 1
+        except ValueError as exc:
+            text = line.strip().decode(errors="replace")[:60]
+            message = str(exc) if isinstance(exc, _Bad) else f"not a number in {text!r}"
+            raise ValueError(f"{path}, line {number}: {message}") from None
+    if skipped:
+        what = ", ".join(f"{n} '{k}'" for k, n in sorted(skipped.items()))
+        warnings.warn(f"{path}: {what} line{'s' if sum(skipped.values()) > 1 else ''} "
+                      "skipped (a Mesh holds the vertices and faces: texture coordinates, "
+                      "normals and the like are not read)", stacklevel=4)
+    coordinates = np.array(points, dtype=np.float64).reshape(-1, 3)
+    blocks = [(_KINDS.get(k, "polygon"), np.array(f, dtype=np.int64).reshape(-1, k))
+              for k, f in faces.items()]
+    raw = from_blocks(path, coordinates, blocks, [None] * len(blocks))
+    return raw, sum(len(f) for f in faces.values())
