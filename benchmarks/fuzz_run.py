@@ -44,7 +44,16 @@ from robustness.bad_input import splice  # noqa: E402
 
 import qdrefine  # noqa: E402
 from qdrefine import check  # noqa: E402
-from test_fuzz import ALLOWED, MAIN, SEEDS, TOKENS, Hang, alarm, mutate  # noqa: E402
+from test_fuzz import (  # noqa: E402
+    ALLOWED,
+    MAIN,
+    SEEDS,
+    TOKENS,
+    Hang,
+    alarm,
+    mutate,
+    names_file,
+)
 
 START = "<!-- fuzzing run: written by benchmarks/fuzz_run.py -->"
 END = "<!-- end of fuzzing run -->"
@@ -92,8 +101,7 @@ def _read(path: Path, seconds: int, ops, seed_triangles: int) -> str:
             try:
                 mesh = qdrefine.read(path)
             except ALLOWED as exc:
-                return "refused" if str(exc).startswith(str(path.with_suffix(""))) \
-                    else "unnamed"
+                return "refused" if names_file(str(exc), path) else "unnamed"
     except Hang:
         return "hang"
     except Exception:  # noqa: BLE001 - anything else is a failure to count
@@ -155,7 +163,9 @@ def section(result: dict, name: str) -> str:
          f"read by `qdrefine.read` under a {result['alarm_seconds']} s alarm that raises a "
          "`BaseException` (so no reader's `except Exception` can take a hang for a refusal). "
          "*read*: a mesh that passes every check; *refused*: one `ValueError` / `OSError` / "
-         "`MemoryError` whose message starts with the file name. The failures: *hang*; "
+         "`MemoryError` whose message starts with the file name (or with a file of its "
+         "folder that it names as the file's: an XDMF file's heavy data). The failures: "
+         "*hang*; "
          "*traceback* (any other exception); *unnamed* (a refusal without the file name); "
          "*invalid* (a mesh that fails the checks); *shortened* (a truncated file read as "
          "fewer triangles); *input changed*; *smaller after a deleted line* (a deleted line "
