@@ -64,13 +64,16 @@ def test_negative_physical_tags_are_read_as_gmsh_reads_them(tmp_path):
     """MSH 2.2 physical tag -5 was read as -5 without a word; the Gmsh SDK reads it as
     group 5 (checked: its physical groups of this file are (1, 9), (2, 5), (2, 7))."""
     path = tmp_path / "neg.msh"
-    path.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n"
+    path.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n2 -5 \"hole\"\n"
+                    "1 -9 \"wall\"\n$EndPhysicalNames\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n"
                     "3 1 1 0\n4 0 1 0\n$EndNodes\n$Elements\n3\n1 2 2 -5 1 1 2 3\n"
                     "2 2 2 7 1 1 3 4\n3 1 2 -9 1 1 2\n$EndElements\n")
     with pytest.warns(UserWarning, match=r"neg\.msh: negative physical tags \(e\.g\. -9\), "
                                          r"which Gmsh reads as their absolute values"):
         mesh = qdrefine.read(path)
     assert mesh.cell_tags.tolist() == [5, 7] and mesh.edge_tags.tolist() == [9]
+    # the names follow their tags (they stayed at -5 and -9, naming no element; review)
+    assert mesh.physical_names == {(2, 5): "hole", (1, 9): "wall"}
 
 
 def test_a_physical_name_that_is_not_utf8_is_read_as_latin1_with_a_warning(tmp_path):

@@ -799,6 +799,15 @@ def _rows_of(tags: NDArray[np.int64], query: NDArray[np.int64], contiguous: bool
     return np.where(found, order[pos], -1)
 
 
+def _positive(names: dict[tuple[int, int], str]) -> dict[tuple[int, int], str]:
+    """Physical names keyed by the absolute values of their tags, as the elements' tags
+    are read (a name given to the tag itself wins over one given to its negative)."""
+    out = {key: name for key, name in names.items() if key[1] >= 0}
+    for (dim, tag), name in names.items():
+        out.setdefault((dim, abs(tag)), name)
+    return out
+
+
 def _assemble(f: _File, c: _Content) -> RawMesh:
     tags = c.node_tags
     twice = _first_duplicate(tags)
@@ -856,7 +865,7 @@ def _assemble(f: _File, c: _Content) -> RawMesh:
     # messages name points and triangles by the file's node and element tags
     raw = from_blocks(f.path, c.points, merged, merged_tags,
                       point_numbers=np.asarray(tags, dtype=np.int64))
-    raw.physical_names = dict(c.names)
+    raw.physical_names = _positive(c.names) if negative else dict(c.names)
     if len(tri_ids) == len(raw.triangles):
         raw.triangle_numbers = np.asarray(tri_ids, dtype=np.int64)
     kept_lines = line_ids[np.asarray(line_tags) != 0]  # the lines that are tagged edges
