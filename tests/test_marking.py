@@ -110,6 +110,16 @@ def test_a_point_box_marks_exactly_the_triangles_that_hold_the_point(seed, t, ed
     np.testing.assert_array_equal(marks, truth)
 
 
+def test_a_box_reaching_the_float_limit_is_decided_exactly():
+    """Box corners near 1e308 overflowed the exact predicates (a triangle beyond the box's
+    corner was marked; review): the box is taken within the mesh's extent."""
+    mesh = Mesh([[0.0, 0], [4, 0], [0, 4]], [[0, 1, 2]])
+    big = np.finfo(float).max
+    assert not mark_box(mesh, (3, 3, 1e308, 1e308))[0]  # beyond the hypotenuse
+    assert mark_box(mesh, (2, 2, big, big))[0]  # touches it at (2, 2)
+    assert mark_box(mesh, (-big, -big, big, big))[0]
+
+
 def test_a_point_box_inside_a_thin_triangle_marks_it():
     o, a, c = (0.6666666666666666, 0.0), (1.0, 0.0), (1.757722778427078, 0.3333333333333333)
     q = (0.8134855524694892, 0.04485528111104853)  # exactly inside, by 1.6e-17

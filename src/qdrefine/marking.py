@@ -188,6 +188,10 @@ def mark_box(mesh: Mesh, box: ArrayLike) -> NDArray[np.bool_]:
     hit = ((p[..., 0].max(1) >= b[0]) & (p[..., 0].min(1) <= b[2])
            & (p[..., 1].max(1) >= b[1]) & (p[..., 1].min(1) <= b[3]))
     rows = np.flatnonzero(hit)
+    if rows.size:  # the box within the mesh's extent meets the same triangles, and its
+        # corners stay in the exact predicates' range (1e308 overflowed them)
+        corners = p.reshape(-1, 2)
+        b = np.concatenate([np.maximum(b[:2], corners.min(0)), np.minimum(b[2:], corners.max(0))])
     corners = np.array([[b[0], b[1]], [b[2], b[1]], [b[2], b[3]], [b[0], b[3]]])
     n = mesh.n_points
     points = np.concatenate([mesh.points, corners])
