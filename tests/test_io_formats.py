@@ -141,6 +141,21 @@ def test_a_vtu_read_through_any_path_keeps_names_and_dtypes(tmp_path, change):
     same_everything(mesh, qdrefine.read(path))
 
 
+def test_physical_names_in_another_tools_vtu_field_data_are_kept(tmp_path):
+    """A VTU read through meshio with names in its own field data (``name -> [tag, dim]``)
+    lost them once qdrefine's record was applied, which such a file does not have
+    (review)."""
+    path = tmp_path / "m.vtu"
+    meshio.write(path, meshio.Mesh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]),
+                                   [("triangle", np.array([[0, 1, 2]]))],
+                                   cell_data={"gmsh:physical": [np.array([1])]}), binary=False)
+    path.write_text(path.read_text().replace("<Piece", '<FieldData><DataArray type="Int64" '
+                                             'Name="left" NumberOfTuples="2" format="ascii">'
+                                             "1 2</DataArray></FieldData>\n<Piece", 1))
+    assert dict(meshio.read(path).field_data)["left"].tolist() == [1, 2]
+    assert qdrefine.read(path).physical_names == {(2, 1): "left"}
+
+
 def test_obj_files_as_other_tools_write_them(tmp_path):
     """meshio's OBJ reader refused a file with normals or texture coordinates, as Blender
     writes it ("len(points) = 4, but len(point_data['obj:vn']) = 1"), and took negative

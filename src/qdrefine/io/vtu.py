@@ -142,10 +142,13 @@ def _read(path: Path, data: bytes) -> RawMesh:
         comps = components(item)
         limit = UNSIZED_LIMIT if rows is None else max(rows, 0) * comps * kind.itemsize
         what = f"DataArray {item.get('Name')!r}" if item.get("Name") else "an unnamed DataArray"
-        if decompressor is not None and rows is not None:  # declared sizes fit the memory
-            expanded[0] += limit  # (a 385 kB file expanded to 2.1 GB past any limit)
+
+        def reserve(size: int) -> None:  # the declared sizes fit the memory (a 385 kB file
+            expanded[0] += size  # expanded to 2.1 GB past any limit)
             check_needed(expanded[0], f"reading {path} (its compressed arrays, up to {what})")
-        raw = _block(data, offset, header, decompressor, limit, what)
+
+        raw = _block(data, offset, header, decompressor, limit, what,
+                     reserve if rows is not None else None)
         a = np.frombuffer(raw, dtype=kind).astype(kind.newbyteorder("="), copy=False)
         if len(a) % comps:  # components() is at least 1
             raise ValueError(f"byte {offset}: {what} holds {len(a)} values, not a multiple "
@@ -193,7 +196,8 @@ def _recorded(raw: RawMesh, meta: dict) -> RawMesh:
     """``raw`` with what qdrefine's field data ``meta`` records: the physical names, and
     each data field in its recorded shape and dtype."""
     try:
-        raw.physical_names = {(int(d), int(t)): str(nm) for d, t, nm in meta.get("names", [])}
+        if "names" in meta:  # else those meshio read from a file's own field data stay
+            raw.physical_names = {(int(d), int(t)): str(nm) for d, t, nm in meta["names"]}
     except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{raw.path}: not a readable VTK XML unstructured grid file (field "
                          f"data {_META!r}: its physical names are not (dim, tag, name) "
@@ -301,11 +305,12 @@ def _meshio_meta(values: NDArray | None) -> dict:
 
 
 def _block(data: bytes, offset: int, header: np.dtype, decompressor, limit: int,
-           what: str) -> bytes:
+           what: str, reserve=None) -> bytes:
     """The bytes of the appended block at ``offset``: raw ones (``decompressor`` None)
     bounded by the file size, compressed ones by ``limit`` (what the data ``what`` can
     hold) and by the sizes of its header, checked while decompressing (at most
-    ``limit + 1`` bytes are ever made)."""
+    ``limit + 1`` bytes are ever made). ``reserve(n)`` is told the bytes a compressed
+    block will make (the least of ``limit`` and its header's sizes) before it is made."""
     size = header.itemsize
     if offset < 0 or offset + size > len(data):
         raise ValueError(f"byte {offset}: appended data offset outside the file")
@@ -321,6 +326,9 @@ def _block(data: bytes, offset: int, header: np.dtype, decompressor, limit: int,
     n_blocks, block_size, last_size = (int(v) for v in head)
     if min(n_blocks, block_size, last_size) < 0 or offset + (3 + n_blocks) * size > len(data):
         raise ValueError(f"byte {offset}: bad compressed block header")
+    if reserve is not None:  # a miscounted NumberOfPoints is then said as such, not as memory
+        made = (n_blocks - 1) * block_size + (last_size or block_size) if n_blocks else 0
+        reserve(min(limit, made))  # a last size of 0: a full last block
     csizes = np.frombuffer(data, header, n_blocks, offset + 3 * size).astype(np.int64)
     pos = offset + (3 + n_blocks) * size
     if pos + int(csizes.sum()) > len(data):
