@@ -49,31 +49,32 @@ def read(path: Path) -> RawMesh:
     return read_with_meshio(path, "xdmf", "XDMF")
 
 
-def _heavy_items(text: bytes, kind: str = "HDF") -> list[tuple[str, str, str]]:
-    """``(file, dataset, dimensions)`` of every ``Format="HDF"`` data item of XDMF ``text``
-    (its text ``FILE:/dataset``: the file is everything before the last ``:/``, a Windows
-    drive letter or spaces in the name included); with ``kind="Binary"``, ``(file, "",
-    dimensions)`` of the raw binary items. The XML is parsed as meshio parses it (a regular
-    expression missed single-quoted attributes and CDATA, which meshio reads); XML that
-    does not parse has none (meshio refuses it)."""
+def _heavy_items(text: bytes) -> dict[str, list[tuple[str, str, str]]]:
+    """The data items of XDMF ``text`` by format: ``"HDF"``: ``(file, dataset,
+    dimensions)`` of each item ``FILE:/dataset`` (the file is everything before the last
+    ``:/``: a Windows drive letter or spaces in the name included); ``"BINARY"``: ``(file,
+    "", dimensions)`` of the raw binary items. The XML is parsed as meshio parses it (a
+    regular expression missed single-quoted attributes and CDATA, which meshio reads),
+    once and incrementally, each item dropped when read (inline data can be most of the
+    file); XML that does not parse has none (meshio refuses it)."""
+    items: dict[str, list[tuple[str, str, str]]] = {"HDF": [], "BINARY": []}
     try:
-        root = ElementTree.fromstring(text)
+        for _, element in ElementTree.iterparse(io.BytesIO(text), events=("end",)):
+            if not isinstance(element.tag, str) or \
+                    element.tag.rpartition("}")[2] != "DataItem":
+                continue
+            found = {k.rpartition("}")[2].lower(): v for k, v in element.attrib.items()}
+            kind = found.get("format", "").strip().upper()
+            content = (element.text or "").strip()
+            element.clear()
+            if kind == "BINARY":
+                items[kind].append((content, "", found.get("dimensions", "")))
+            elif kind == "HDF":
+                name, sep, dataset = content.rpartition(":/")
+                if sep:
+                    items[kind].append((name, "/" + dataset, found.get("dimensions", "")))
     except (ElementTree.ParseError, ValueError):
-        return []
-    items = []
-    for element in root.iter():
-        if not isinstance(element.tag, str) or element.tag.rpartition("}")[2] != "DataItem":
-            continue
-        found = {k.rpartition("}")[2].lower(): v for k, v in element.attrib.items()}
-        if found.get("format", "").strip().upper() != kind.upper():
-            continue
-        content = (element.text or "").strip()
-        if kind.upper() == "BINARY":
-            items.append((content, "", found.get("dimensions", "")))
-            continue
-        name, sep, dataset = content.rpartition(":/")
-        if sep:
-            items.append((name, "/" + dataset, found.get("dimensions", "")))
+        return {"HDF": [], "BINARY": []}
     return items
 
 
@@ -88,7 +89,8 @@ def heavy_data_files(path: str | Path) -> list[Path]:
     except OSError:
         return []
     folder = _folder(path)
-    return [folder / name for name in dict.fromkeys(n for n, _, _ in _heavy_items(text))]
+    return [folder / name
+            for name in dict.fromkeys(n for n, _, _ in _heavy_items(text)["HDF"])]
 
 
 def _folder(path: Path) -> Path:
@@ -107,9 +109,10 @@ def _check_heavy_data(path: Path) -> None:
         text = path.read_bytes()
     except OSError:
         return  # the reader says what is wrong
-    for name, _, _ in _heavy_items(text, "Binary"):
+    found = _heavy_items(text)
+    for name, _, _ in found["BINARY"]:
         _check_binary_file(path, name)
-    items = _heavy_items(text)
+    items = found["HDF"]
     folder = _folder(path)
     for name in dict.fromkeys(n for n, _, _ in items):
         h5_path = folder / name
