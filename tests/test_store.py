@@ -625,6 +625,7 @@ def test_local_paths_are_split_and_compared_by_the_platform_separators(monkeypat
     assert "inside the input" in locations.overlap(r"C:\d\in.zarr\o.zarr", r"C:\d\in.zarr")
     assert "is inside the output" in locations.overlap(r"C:\d\o.zarr", r"C:\d\o.zarr\i")
     assert locations.overlap(r"C:\d\in.zarr2", r"C:\d\in.zarr") is None
+    assert locations._inside("file://C:/a/b.zarr", "file://C:/a")  # fsspec's local root
     temporary = lifecycle.temporary(r"C:\data\out.zarr", ".tmp")
     assert temporary.startswith("C:\\data\\.out.zarr~") and temporary.endswith(".tmp")
 

@@ -92,8 +92,8 @@ def overlap(target: str, source: str, words: tuple[str, str] = ("output", "input
 def _inside(url: str, folder: str) -> bool:
     """Whether canonical ``url`` lies below canonical ``folder`` (a local path by the
     platform's separators, ``C:\\a\\b`` on Windows)."""
-    if is_local(url) and is_local(folder):
-        return url.startswith(os.path.join(folder, ""))
+    if "://" not in url and "://" not in folder:  # canonical local paths; a file:// URL
+        return url.startswith(os.path.join(folder, ""))  # (fsspec's root) keeps '/'
     return url.startswith(folder.rstrip("/") + "/")
 
 
