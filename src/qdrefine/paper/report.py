@@ -318,12 +318,9 @@ def iterated(ctx) -> list[str]:
            "one, mean / median over the triangles; *closed*: triangles whose shapes closed (a "
            "level without new shapes) by level k. A class stands for its shape placed "
            "canonically; a mesh breaks ties (isosceles shapes, x = 1/2) by coordinates and "
-           "may split a mirror-placed copy differently, and a shape exactly on a 7T-QD "
-           "decision arc (two pentagon splits of equal squared lengths) is split by the "
-           "rounded trisection points of the mesh, which may pick the other split. So a 7T-QD "
-           "mesh can hold a few more shapes than counted, and its quality can differ where "
-           "a descendant lies on such an arc (the worst ratio agrees; tests compare with "
-           f"brute-force meshes). The study (all schemes, counterexample searches included) took "
+           "may split a mirror-placed copy differently, as it splits a shape on a 7T-QD arc "
+           "(a tie of squared lengths) by its rounded points: more shapes, another quality "
+           f"(the worst ratio agrees with meshes, tested). The study (all schemes) took "
            f"{ctx.get('iterated_seconds', float('nan')):.1f} s.\n",
            "| scheme | k | worst | classes (median / max) | quality (mean / median) | closed |",
            "|---|---|---|---|---|---|"]

@@ -212,15 +212,13 @@ def _write(path: Path, source: Chunks, binary: bool, version: str, physical_name
             for (dim, tag), name in names:
                 out.write(f'{dim} {tag} "{name}"\n'.encode())
             out.write(b"$EndPhysicalNames\n")
-        record = sections[:1] if sections and sections[0].startswith(b"$QdrefineData") else []
-        for part in record:  # before the mesh: a file cut short keeps it, and says so
-            out.write(part)
+        first = int(bool(sections) and sections[0].startswith(b"$QdrefineData"))
+        out.write(b"".join(sections[:first]))  # the record before the mesh: a cut file says so
         if version == "4.1":
             _write41(out, source, binary)
         else:
             _write22(out, source, binary)
-        for part in sections[len(record):]:
-            out.write(part)
+        out.write(b"".join(sections[first:]))
 
 
 def _bounding_box(source: Chunks) -> list[float]:
@@ -398,6 +396,5 @@ def _data_sections(path: Path, mesh, point_data: dict, cell_data: dict, binary: 
                 body = b"".join(format_floats(np.column_stack([ids, flat]), first="%d"))
             parts.append(head + body + f"$End{kind}\n".encode())
     if spec:  # first: a file cut after it is missing views it records (the reader says so)
-        parts.insert(0, b"$QdrefineData\n" + json.dumps(spec).encode()
-                     + b"\n$EndQdrefineData\n")
+        parts.insert(0, b"$QdrefineData\n" + json.dumps(spec).encode() + b"\n$EndQdrefineData\n")
     return parts
