@@ -170,6 +170,14 @@ def _coarsened(mesh: Mesh, fam: Families, found: NDArray[np.int64], sch: Scheme
     # data, its origin), not for the family's first child
     again = np.flatnonzero(restored)[same >= 0]
     parents[again] = data[again] = gone_rows[same[same >= 0]]
+    # a child that was a transition family comes back as its parent: it stands for a member
+    # (the first in coordinate order, as refinement's rule), not for a triangle beside it
+    rest = np.flatnonzero(restored)[same < 0]
+    whole = same_triangles(out.points, out.triangles[rest], mesh.points,
+                           fam.parent_triangles[child_fam])
+    if (whole >= 0).any():
+        rest, whole = rest[whole >= 0], whole[whole >= 0]
+        parents[rest] = data[rest] = _family_representatives(mesh, fam, child_fam[whole])
     if mesh.cell_data or mesh.cell_tags is not None:  # emitted with the coarse rows' data
         out = inherited(mesh, out, data)
     origins = mesh.origins[parents]
@@ -189,6 +197,15 @@ def _representatives(mesh: Mesh, fam: Families, children: NDArray[np.int64], n_p
     counts = fam.counts()[families]
     rows = np.concatenate([owner[flat[plain]], blocks(fam.first()[families], counts)])
     group = np.concatenate([restored[plain], np.repeat(restored[~plain], counts)])
+    return first_in_coordinate_order(mesh.points, mesh.triangles, rows, group)[1]
+
+
+def _family_representatives(mesh: Mesh, fam: Families, families: NDArray[np.int64]
+                            ) -> NDArray[np.int64]:
+    """For each of ``families``, its member that comes first in coordinate order."""
+    counts = fam.counts()[families]
+    rows = blocks(fam.first()[families], counts)
+    group = np.repeat(np.arange(families.size), counts)
     return first_in_coordinate_order(mesh.points, mesh.triangles, rows, group)[1]
 
 
