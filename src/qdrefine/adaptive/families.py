@@ -151,3 +151,10 @@ def _member_spans(member, first, last, count):
             last[m] = t
             count[m] += 1
     return True
+
+
+def smallest_first(rows: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Each triangle row ``(R, 3)`` rotated to start at its smallest id (the same triangle,
+    one spelling)."""
+    shift = np.argmin(rows, axis=1)[:, None]
+    return np.take_along_axis(rows, (shift + np.arange(3)) % 3, axis=1)

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from ..jit import threads_for
 from ..mesh import Mesh
 from .edgekeys import oriented
-from .families import Families, family_spans
+from .families import Families, family_spans, smallest_first
 from .labels import canonical_labels
 from .patterns import canonical_corners, pattern_stencil, stencil_coordinates
 from .working import with_edge_points
@@ -64,7 +64,7 @@ def families_of(mesh: Mesh, k: int) -> tuple[Mesh, Families, NDArray[np.int64] |
     if kept is not None:
         return mesh, kept, None
     green = np.flatnonzero(rows[:, 0] >= 0)
-    parent_rows, family = _unique_rows(_rotated(rows[green]))
+    parent_rows, family = _unique_rows(smallest_first(rows[green]))
     first = np.full(parent_rows.shape[0], m, dtype=np.int64)
     np.minimum.at(first, family, green)
     key = np.arange(m, dtype=np.int64)
@@ -75,7 +75,7 @@ def families_of(mesh: Mesh, k: int) -> tuple[Mesh, Families, NDArray[np.int64] |
     else:
         mesh = _reordered(mesh, order)
         green = np.flatnonzero(mesh.transitions[:, 0] >= 0)
-        parent_rows, family = _unique_rows(_rotated(mesh.transitions[green]))
+        parent_rows, family = _unique_rows(smallest_first(mesh.transitions[green]))
     # families numbered by first member, as the refinement numbers them
     first = np.full(parent_rows.shape[0], m, dtype=np.int64)
     np.minimum.at(first, family, green)
@@ -111,7 +111,7 @@ def with_history(mesh: Mesh, families: Families, origins: NDArray | None = None)
         # what families_of would rebuild from the rows (their rotation included), kept for
         # the next call on this mesh: rebuilding took 0.21 s of a 2 s scattered second
         # cycle on the 864k L-shape (docs/adaptive.md, "Cost")
-        kept = Families.trusted(member, _rotated(families.parent_triangles),
+        kept = Families.trusted(member, smallest_first(families.parent_triangles),
                                 families.stencil)
         object.__setattr__(out, "_families", kept)
     return out
@@ -136,12 +136,6 @@ def _parent_rows(member, parent_triangles, rows):
         f = member[t]
         for j in range(3):
             rows[t, j] = parent_triangles[f, j] if f >= 0 else -1
-
-
-def _rotated(rows: NDArray[np.int64]) -> NDArray[np.int64]:
-    """Each row rotated to start at its smallest id (the same triangle, one spelling)."""
-    shift = np.argmin(rows, axis=1)[:, None]
-    return np.take_along_axis(rows, (shift + np.arange(3)) % 3, axis=1)
 
 
 def _unique_rows(rows: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:

@@ -21,7 +21,7 @@ from ..numbering import edge_point, incidence
 from ..partition import partition_many
 from ..schemes import Scheme
 from .edgekeys import oriented
-from .families import Families
+from .families import Families, smallest_first
 from .overlap import signed_twice_areas
 from .working import emit_full, working_rows
 
@@ -78,7 +78,7 @@ def red_families(mesh: Mesh, fam: Families, marked: NDArray[np.bool_], sch: Sche
     if tags is not None:
         ok[ok] = (tags[which[ok]] == tags[which[ok][:, :1]]).all(axis=1)
     # the children share an origin, and the restored triangle is one of its refinements
-    origin = mesh.origins[owner]
+    origin = smallest_first(mesh.origins[owner])  # a row given from another corner too
     ok[ok] = (origin[which[ok]] == origin[which[ok][:, :1]]).all(axis=(1, 2))
     ok[ok] = in_hierarchy(points, origin[which[ok][:, 0]], tri3[ok], sch)
     return np.concatenate([guess[ok], which[ok]], axis=1)
