@@ -62,7 +62,8 @@ def coarsen(mesh: Mesh, marked: ArrayLike, scheme: str | Scheme = "7t-qd") -> Me
         remaining points need, chosen as refinement chooses them (no edge gets new
         points; a transition that uses its centroid gets it as a new point, after the
         others). A restored triangle with a neighbour two levels finer keeps its
-        children, each with its own cell data. Points no triangle uses any more are
+        children, each with its own cell data (a child that was a transition family:
+        its member's that comes first in coordinate order). Points no triangle uses any more are
         removed (the others keep their order); tags, tagged edges (joined again), cell
         data (a restored triangle's: that of the child whose vertices come first in
         coordinate order, so independent of the triangle order), point data
