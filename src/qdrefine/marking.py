@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from .adaptive import as_mask
 from .adaptive.api import is_integer_mask
 from .mesh import Mesh
-from .predicates import orient_signs
+from .predicates import check_coordinates, orient_signs
 
 __all__ = ["mark_ids", "mark_mask", "mark_tag", "mark_region", "mark_box", "mark_point",
            "mark_circle", "mark_random", "mark_dorfler", "mark_maximum", "mark_file"]
@@ -179,7 +179,9 @@ def mark_box(mesh: Mesh, box: ArrayLike) -> NDArray[np.bool_]:
     Separating-axis test: the box's two axes (float comparisons, exact) and the three edge
     lines of each triangle, where the box is apart iff its four corners lie strictly
     outside one edge, by the exact orientation predicate (a float test of that side
-    missed triangles that hold a point box a few ulps inside them).
+    missed triangles that hold a point box a few ulps inside them). The box is taken
+    within the mesh's extent; a coordinate left of magnitude below 1e-100 (other than 0)
+    is refused, as mesh coordinates are (:data:`qdrefine.predicates.COORDINATE_RANGE`).
     """
     b = np.asarray(box, dtype=np.float64)
     if b.shape != (4,) or not np.isfinite(b).all() or b[0] > b[2] or b[1] > b[3]:
@@ -190,17 +192,18 @@ def mark_box(mesh: Mesh, box: ArrayLike) -> NDArray[np.bool_]:
     rows = np.flatnonzero(hit)
     if rows.size:  # the box within the mesh's extent meets the same triangles, and its
         # corners stay in the exact predicates' range (1e308 overflowed them)
-        corners = p.reshape(-1, 2)
-        b = np.concatenate([np.maximum(b[:2], corners.min(0)), np.minimum(b[2:], corners.max(0))])
+        extent = p.reshape(-1, 2)
+        b = np.concatenate([np.maximum(b[:2], extent.min(0)), np.minimum(b[2:], extent.max(0))])
     corners = np.array([[b[0], b[1]], [b[2], b[1]], [b[2], b[3]], [b[0], b[3]]])
+    check_coordinates(corners, "box corner")  # 5e-324 underflowed the exact side tests
     n = mesh.n_points
     points = np.concatenate([mesh.points, corners])
-    t = mesh.triangles[rows]
+    t = mesh.triangles[rows].astype(np.int64)  # the box's corners are points n..n+3
     for i in range(3):  # edge (a, c) of each counter-clockwise triangle: inside is left
         a, c = t[:, i], t[:, (i + 1) % 3]
         outside = np.ones(rows.size, dtype=np.bool_)
         for k in range(4):
-            corner = np.full(rows.size, n + k, dtype=t.dtype)
+            corner = np.full(rows.size, n + k, dtype=np.int64)
             sides = orient_signs(points, np.stack([a, c, corner], axis=1))
             outside &= sides < 0
         hit[rows[outside]] = False
