@@ -286,21 +286,26 @@ def _joined(parts: list[_Piece]) -> _Piece:
 def _meta(root: ET.Element, array) -> dict:
     for item in root.findall("./UnstructuredGrid/FieldData/DataArray"):
         if item.get("Name") == _META:
-            try:
-                meta = json.loads(array(item, None).astype(np.uint8).tobytes().decode())
-            except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):  # too deep
-                raise ValueError(f"field data {_META!r} is not JSON") from None
-            return meta if isinstance(meta, dict) else {}
+            return _decoded_meta(array(item, None))
     return {}
 
 
 def _meshio_meta(values: NDArray | None) -> dict:
-    """qdrefine's field data as meshio read it (bytes of JSON); ``{}`` where it is not
-    (a file of another tool, or a damaged record: read as stored)."""
+    """qdrefine's field data as meshio read it; ``{}`` where it is not (a file of another
+    tool, or a damaged record: read as stored)."""
+    try:
+        return {} if values is None else _decoded_meta(values)
+    except (TypeError, ValueError):
+        return {}
+
+
+def _decoded_meta(values: NDArray) -> dict:
+    """qdrefine's field data ``values`` (the bytes of a JSON mapping; ``{}`` for another
+    JSON value); ``ValueError`` when they are not JSON."""
     try:
         meta = json.loads(np.asarray(values).astype(np.uint8).tobytes().decode())
-    except (TypeError, ValueError, RecursionError):
-        return {}
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):  # too deep
+        raise ValueError(f"field data {_META!r} is not JSON") from None
     return meta if isinstance(meta, dict) else {}
 
 
