@@ -91,8 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         # '>&-': a report fails as '> /dev/full' does, naming standard output (it was lost,
         # exit 0); a command that prints nothing (-q) runs as usual
-        named = contextlib.redirect_stdout(_NamedStream(
-            _Closed() if sys.stdout is None else sys.stdout, "standard output"))
+        named = contextlib.redirect_stdout(_standard_output())
         with sigterm_as_interrupt(), compile_note(COMPILING), named:
             code = int(args.handler(args))  # a kill cleans up as Ctrl-C
             sys.stdout.flush()  # a full disk behind '>' is said here, not at exit
@@ -125,7 +124,7 @@ def _parsed(parser: argparse.ArgumentParser,
     """``parser.parse_known_args(argv)``; the text of ``--help`` and ``--version`` that
     could not be written raises :class:`OSError` naming standard output (argparse ignores
     write errors, so it was lost with exit 0)."""
-    stream = _NamedStream(_Closed() if sys.stdout is None else sys.stdout, "standard output")
+    stream = _standard_output()
     try:
         with contextlib.redirect_stdout(stream):
             return parser.parse_known_args(_joined_negative_values(argv))
@@ -154,6 +153,11 @@ def _refuse_empty_values(args: argparse.Namespace) -> None:
 def _version() -> str:
     from .. import __version__
     return __version__
+
+
+def _standard_output() -> _NamedStream:
+    """Standard output, its write errors named; a closed one (``>&-``) fails each write."""
+    return _NamedStream(_Closed() if sys.stdout is None else sys.stdout, "standard output")
 
 
 class _Closed:
